@@ -1,0 +1,33 @@
+// Parameters shared by every scene: the cell (radius, material, optional
+// nucleus, mesh) in SI units. Field names follow proto/cellflow/v1/spec.proto.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "physics/core/status.h"
+#include "physics/elastic/material.h"
+#include "physics/mesh/tet_mesh.h"
+
+namespace cellflow::scenes {
+
+struct NucleusParams {
+  double radius_m = 0.0;  // concentric; 0 < radius_m < cell radius
+  elastic::Material material;
+};
+
+struct CellParams {
+  double radius_m = 0.0;
+  elastic::Material material;
+  std::optional<NucleusParams> nucleus;
+  int target_vertex_count = 3000;  // sphere mesh size, 200 ... 20000
+  std::string mesh_file;           // optional Gmsh .msh v4 ASCII; replaces the generated sphere
+};
+
+Status validate(const CellParams& cell, std::string_view field_prefix);
+
+// Builds (or reads) the cell mesh for `cell`.
+StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell);
+
+}  // namespace cellflow::scenes

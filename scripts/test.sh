@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# The test command of the README and of CI: configure, build, run the default
+# ctest suite (everything but the labels "long" and "stability").
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build_dir=${CELLFLOW_BUILD_DIR:-build}
+jobs=${CELLFLOW_JOBS:-$(nproc)}
+cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake --build "$build_dir" -j "$jobs"
+ctest --test-dir "$build_dir" --output-on-failure -j "$jobs" -LE "long|stability" "$@"

@@ -10,14 +10,24 @@
 namespace cellflow::mesh {
 
 struct SphereMeshOptions {
-  double radius_m = 0.0;          // R > 0
-  int target_vertex_count = 3000; // about; 200 ... 20000
-  double nucleus_radius_m = 0.0;  // > 0: concentric nucleus region (tets marked Region::kNucleus)
-  double max_radius_edge_ratio = 1.5;  // TetGen quality bound (-q)
-  double min_dihedral_deg = 10.0;      // TetGen quality bound (-q/..)
+  double radius_m = 0.0;               // R > 0
+  int target_vertex_count = 3000;      // about; 200 ... 20000
+  double nucleus_radius_m = 0.0;       // > 0: concentric nucleus region (tets marked Region::kNucleus)
+  double max_radius_edge_ratio = 1.5;  // TetGen quality bound (-q); 1.1 ... 10
+  double min_dihedral_deg = 10.0;      // TetGen quality bound (-q/..); 0 ... 18
 };
 
 // Deterministic: the same options give the same mesh.
+// Geodesic (subdivided icosahedron) surface with every boundary vertex exactly
+// on the sphere (the nucleus surface likewise on radius nucleus_radius_m),
+// filled by TetGen (-pq<ratio>/<dihedral>Y -a<volume>) with a uniform edge
+// length; the volume bound is iterated until the vertex count is within 3 %
+// of the target (within 15 % guaranteed). Tets are positively oriented; a
+// sliver pass moves free interior vertices until every dihedral angle
+// exceeds min_dihedral_deg without breaking the radius-edge bound.
+// Invalid options -> kInvalidArgument naming the field and its range; the
+// nucleus must leave a shell of at least half a mesh spacing
+// (nucleus_radius_m < radius_m - h/2, h the surface edge length).
 StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options);
 
 // Gmsh MSH 4.1 ASCII: $Nodes and $Elements (4-node tetrahedra, type 4). A
@@ -25,6 +35,14 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options);
 // Coordinates are taken in metres times `length_scale_m` (1 = file in metres).
 // Missing/unreadable file -> kNotFound/kInvalidArgument; inverted or degenerate
 // tetrahedra -> kFailedPrecondition naming the element.
+// Details: other element types and unknown sections are skipped; nodes that
+// no tetrahedron uses are dropped; node order is kept otherwise. A tet is
+// inverted when det[x1-x0, x2-x0, x3-x0] < 0 in Gmsh's node order, degenerate
+// when |V| <= 1e-12 of the mean |V|; the nodes are reordered to the
+// tet_mesh.h convention. Errors in the text carry "path:line:".
+// write_gmsh_msh: MSH 4.1 ASCII, physical groups 1 "cytoplasm" and 2
+// "nucleus" (one volume entity each), coordinates with 17 significant digits
+// so that read_gmsh_msh(write_gmsh_msh(m)) reproduces m bitwise.
 StatusOr<TetMesh> read_gmsh_msh(const std::string& path, double length_scale_m = 1.0);
 Status write_gmsh_msh(const TetMesh& mesh, const std::string& path);
 

@@ -16,9 +16,9 @@ namespace cellflow::mesh {
 enum class Region : std::uint8_t { kCytoplasm = 0, kNucleus = 1 };
 
 struct TetMesh {
-  std::vector<double> positions_m;   // 3 * num_vertices()
-  std::vector<std::int32_t> tets;    // 4 * num_tets()
-  std::vector<Region> tet_region;    // num_tets(); all kCytoplasm without a nucleus
+  std::vector<double> positions_m;       // 3 * num_vertices()
+  std::vector<std::int32_t> tets;        // 4 * num_tets()
+  std::vector<Region> tet_region;        // num_tets(); all kCytoplasm without a nucleus
   std::vector<std::uint8_t> on_surface;  // num_vertices(); 1 for boundary vertices
 
   std::size_t num_vertices() const { return positions_m.size() / 3; }

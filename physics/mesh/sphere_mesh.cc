@@ -1,0 +1,489 @@
+// Sphere meshing: a geodesic (subdivided icosahedron) surface triangulation
+// projected onto the sphere, closed by TetGen into a quality constrained
+// Delaunay tetrahedralization. The surface is preserved exactly (-Y), so every
+// boundary vertex lies on the sphere; the interior density follows a
+// maximum-volume bound tuned until the vertex count meets the target.
+#include "physics/mesh/sphere_mesh.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <map>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "physics/mesh/tet_geometry.h"
+
+#define TETLIBRARY  // TetGen throws an int on failure instead of calling exit()
+#include <tetgen.h>
+
+namespace cellflow::mesh {
+namespace {
+
+constexpr int kMinVertexCount = 200;
+constexpr int kMaxVertexCount = 20000;
+
+struct SurfaceMesh {
+  std::vector<double> points;                 // 3 per vertex
+  std::vector<std::array<int, 3>> triangles;  // indices into points
+};
+
+// Geodesic sphere of the given frequency: every face of the icosahedron is
+// split into frequency^2 triangles on a barycentric grid and each grid point is
+// projected onto the sphere. 10 f^2 + 2 vertices, 20 f^2 triangles. Grid points
+// are keyed by their integer barycentric weights on the icosahedron vertices,
+// so points on shared edges are merged exactly (no floating-point matching).
+SurfaceMesh make_geodesic_sphere(int frequency, double radius_m) {
+  const double phi = (1.0 + std::sqrt(5.0)) / 2.0;
+  const std::array<std::array<double, 3>, 12> ico = {{{-1, phi, 0},
+                                                      {1, phi, 0},
+                                                      {-1, -phi, 0},
+                                                      {1, -phi, 0},
+                                                      {0, -1, phi},
+                                                      {0, 1, phi},
+                                                      {0, -1, -phi},
+                                                      {0, 1, -phi},
+                                                      {phi, 0, -1},
+                                                      {phi, 0, 1},
+                                                      {-phi, 0, -1},
+                                                      {-phi, 0, 1}}};
+  const std::array<std::array<int, 3>, 20> faces = {
+      {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+       {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+       {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}}};
+  const int n = frequency;
+  SurfaceMesh surface;
+  surface.points.reserve(3 * static_cast<std::size_t>(10 * n * n + 2));
+  surface.triangles.reserve(static_cast<std::size_t>(20 * n * n));
+  // Key: (vertex, weight) pairs with nonzero weight, sorted by vertex.
+  std::map<std::array<int, 6>, int> index_of;
+
+  auto point_index = [&](const std::array<int, 3>& face, int i, int j) {
+    const int k = n - i - j;
+    std::array<std::pair<int, int>, 3> w = {{{face[0], k}, {face[1], i}, {face[2], j}}};
+    std::sort(w.begin(), w.end());
+    std::array<int, 6> key{-1, 0, -1, 0, -1, 0};
+    int m = 0;
+    for (const auto& [vertex, weight] : w) {
+      if (weight > 0) {
+        key[2 * m] = vertex;
+        key[2 * m + 1] = weight;
+        ++m;
+      }
+    }
+    auto [it, inserted] = index_of.try_emplace(key, static_cast<int>(surface.points.size() / 3));
+    if (inserted) {
+      double p[3];
+      for (int d = 0; d < 3; ++d) {
+        p[d] = (k * ico[face[0]][d] + i * ico[face[1]][d] + j * ico[face[2]][d]) / n;
+      }
+      const double norm = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+      for (double c : p) surface.points.push_back(radius_m * c / norm);
+    }
+    return it->second;
+  };
+
+  for (const auto& face : faces) {
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; i + j < n; ++j) {
+        const int a = point_index(face, i, j);
+        const int b = point_index(face, i + 1, j);
+        const int c = point_index(face, i, j + 1);
+        surface.triangles.push_back({a, b, c});
+        if (i + j + 1 < n) {
+          const int d = point_index(face, i + 1, j + 1);
+          surface.triangles.push_back({b, d, c});
+        }
+      }
+    }
+  }
+  return surface;
+}
+
+// Local quality of vertex v: the smallest dihedral angle over its tets, or -1
+// when one of them is inverted or flat or exceeds the radius-edge bound.
+double vertex_quality(const TetMesh& mesh, const std::vector<int>& first, const std::vector<int>& incident,
+                      int v, double max_radius_edge_ratio) {
+  double worst = 180.0;
+  for (int i = first[v]; i < first[v + 1]; ++i) {
+    const std::int32_t* tet = &mesh.tets[4 * static_cast<std::size_t>(incident[i])];
+    if (tet_signed_volume6(mesh.positions_m.data(), tet) <= 0.0) return -1.0;
+    if (tet_radius_edge_ratio(mesh.positions_m.data(), tet) > max_radius_edge_ratio) return -1.0;
+    worst = std::min(worst, tet_dihedral_range(mesh.positions_m.data(), tet).min_deg);
+  }
+  return worst;
+}
+
+// TetGen's dihedral bound is not a guarantee: with the surface held fixed
+// (-Y) a few slivers with two boundary vertices survive next to the sphere.
+// Each vertex of such a sliver is moved to the best of a few candidate
+// positions (towards the centroid of its neighbours, away from the sliver's
+// opposite face, small axis steps) when that raises the smallest dihedral
+// angle of its tets. Interior vertices go first; vertices of the outer surface
+// and of the nucleus interface move only when needed and only along their
+// sphere (candidates projected back onto it), so both surfaces keep every
+// vertex on their spheres. Deterministic: fixed visiting order.
+void remove_slivers(TetMesh& mesh, double bound_deg, double max_radius_edge_ratio, double outer_radius_m,
+                    double nucleus_radius_m) {
+  const int num_vertices = static_cast<int>(mesh.num_vertices());
+  const int num_tets = static_cast<int>(mesh.num_tets());
+  std::vector<int> first(static_cast<std::size_t>(num_vertices) + 1, 0);
+  for (std::int32_t v : mesh.tets) ++first[static_cast<std::size_t>(v) + 1];
+  for (int v = 0; v < num_vertices; ++v) first[v + 1] += first[v];
+  std::vector<int> incident(mesh.tets.size());
+  {
+    std::vector<int> fill(first.begin(), first.end() - 1);
+    for (int t = 0; t < num_tets; ++t) {
+      for (int k = 0; k < 4; ++k) incident[fill[mesh.tets[4 * t + k]]++] = t;
+    }
+  }
+  // Vertices on the outer surface and on the nucleus interface (vertices
+  // with tets of both regions) may only slide on their sphere: their
+  // candidates are projected back onto it. 0 marks a free vertex.
+  std::vector<std::uint8_t> region_mask(static_cast<std::size_t>(num_vertices), 0);
+  for (int t = 0; t < num_tets; ++t) {
+    const auto bit = static_cast<std::uint8_t>(1u << static_cast<unsigned>(mesh.tet_region[t]));
+    for (int k = 0; k < 4; ++k) region_mask[mesh.tets[4 * t + k]] |= bit;
+  }
+  std::vector<double> sphere_radius(static_cast<std::size_t>(num_vertices), 0.0);
+  for (int v = 0; v < num_vertices; ++v) {
+    if (mesh.on_surface[v] != 0) {
+      sphere_radius[v] = outer_radius_m;
+    } else if (region_mask[v] == 3) {
+      sphere_radius[v] = nucleus_radius_m;
+    }
+  }
+  const double target_deg = bound_deg + 0.5;
+  double* x = mesh.positions_m.data();
+  for (int pass = 0; pass < 20; ++pass) {
+    std::vector<int> movable;
+    for (int t = 0; t < num_tets; ++t) {
+      const std::int32_t* tet = &mesh.tets[4 * static_cast<std::size_t>(t)];
+      if (tet_dihedral_range(x, tet).min_deg >= target_deg) continue;
+      for (int k = 0; k < 4; ++k) movable.push_back(tet[k]);
+    }
+    if (movable.empty()) return;
+    // Free vertices first; surface vertices move only where that was not enough.
+    std::sort(movable.begin(), movable.end(), [&](int a, int b) {
+      const bool ca = sphere_radius[a] > 0.0;
+      const bool cb = sphere_radius[b] > 0.0;
+      return ca != cb ? cb : a < b;
+    });
+    movable.erase(std::unique(movable.begin(), movable.end()), movable.end());
+    bool moved = false;
+    for (int v : movable) {
+      const std::array<double, 3> start = {x[3 * v], x[3 * v + 1], x[3 * v + 2]};
+      // A move may not push a tet past the radius-edge bound (or past its
+      // current ratio where TetGen already left it above).
+      double ratio_bound = max_radius_edge_ratio;
+      for (int i = first[v]; i < first[v + 1]; ++i) {
+        ratio_bound = std::max(
+            ratio_bound, tet_radius_edge_ratio(x, &mesh.tets[4 * static_cast<std::size_t>(incident[i])]));
+      }
+      const double start_quality = vertex_quality(mesh, first, incident, v, ratio_bound);
+      if (start_quality >= target_deg) continue;
+      std::vector<std::array<double, 3>> candidates;
+      std::array<double, 3> centroid{};
+      double neighbour_distance = 0.0;
+      int count = 0;
+      for (int i = first[v]; i < first[v + 1]; ++i) {
+        const std::int32_t* tet = &mesh.tets[4 * static_cast<std::size_t>(incident[i])];
+        for (int k = 0; k < 4; ++k) {
+          if (tet[k] == v) continue;
+          double d2 = 0.0;
+          for (int d = 0; d < 3; ++d) {
+            centroid[d] += x[3 * tet[k] + d];
+            d2 += (x[3 * tet[k] + d] - start[d]) * (x[3 * tet[k] + d] - start[d]);
+          }
+          neighbour_distance += std::sqrt(d2);
+          ++count;
+        }
+        // Away from the face opposite v, by a fraction of the tet's size.
+        if (tet_dihedral_range(x, tet).min_deg >= target_deg) continue;
+        int k0 = 0;
+        while (tet[k0] != v) ++k0;
+        const double* a = x + 3 * tet[(k0 + 1) % 4];
+        const double* b = x + 3 * tet[(k0 + 2) % 4];
+        const double* c = x + 3 * tet[(k0 + 3) % 4];
+        const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        const double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        const double n_len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        const double side = n[0] * (start[0] - a[0]) + n[1] * (start[1] - a[1]) + n[2] * (start[2] - a[2]);
+        const double size = std::sqrt(std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) *
+                                      std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]));
+        const double sign = side >= 0.0 ? 1.0 : -1.0;
+        for (double step : {0.05, 0.1, 0.2}) {
+          candidates.push_back({start[0] + sign * step * size * n[0] / n_len,
+                                start[1] + sign * step * size * n[1] / n_len,
+                                start[2] + sign * step * size * n[2] / n_len});
+        }
+      }
+      for (double& c : centroid) c /= count;
+      for (double step : {1.0, 0.5, 0.25}) {
+        candidates.push_back({start[0] + step * (centroid[0] - start[0]),
+                              start[1] + step * (centroid[1] - start[1]),
+                              start[2] + step * (centroid[2] - start[2])});
+      }
+      // Fallback: steps along the coordinate axes, scaled by the mean
+      // distance to the neighbours.
+      const double local = neighbour_distance / count;
+      for (int d = 0; d < 3; ++d) {
+        for (double step : {-0.3, -0.1, 0.1, 0.3}) {
+          std::array<double, 3> c = start;
+          c[d] += step * local;
+          candidates.push_back(c);
+        }
+      }
+      if (sphere_radius[v] > 0.0) {
+        for (auto& c : candidates) {
+          const double r = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+          for (double& component : c) component *= sphere_radius[v] / r;
+        }
+      }
+      double best_quality = start_quality;
+      std::array<double, 3> best = start;
+      for (const auto& candidate : candidates) {
+        for (int d = 0; d < 3; ++d) x[3 * v + d] = candidate[d];
+        const double q = vertex_quality(mesh, first, incident, v, ratio_bound);
+        if (q > best_quality + 1e-9) {
+          best_quality = q;
+          best = candidate;
+        }
+      }
+      for (int d = 0; d < 3; ++d) x[3 * v + d] = best[d];
+      moved = moved || best != start;
+    }
+    if (!moved) return;
+  }
+}
+
+double mean_edge_length(const SurfaceMesh& s) {
+  double total = 0.0;
+  for (const auto& tri : s.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const double* a = &s.points[3 * static_cast<std::size_t>(tri[k])];
+      const double* b = &s.points[3 * static_cast<std::size_t>(tri[(k + 1) % 3])];
+      total += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                         (a[2] - b[2]) * (a[2] - b[2]));
+    }
+  }
+  return total / (3.0 * static_cast<double>(s.triangles.size()));
+}
+
+// One TetGen run over the outer surface (and the nucleus surface, an internal
+// facet, when present) with the given maximum tetrahedron volume.
+StatusOr<TetMesh> tetrahedralize_spheres(const std::vector<SurfaceMesh>& surfaces, double max_volume_m3,
+                                         const SphereMeshOptions& options) {
+  const bool with_nucleus = surfaces.size() > 1;
+  const double outer_radius_m = options.radius_m;
+  const double nucleus_radius_m = options.nucleus_radius_m;
+  tetgenio in;
+  tetgenio out;
+  in.firstnumber = 0;
+  int num_points = 0;
+  int num_facets = 0;
+  for (const SurfaceMesh& s : surfaces) {
+    num_points += static_cast<int>(s.points.size() / 3);
+    num_facets += static_cast<int>(s.triangles.size());
+  }
+  in.numberofpoints = num_points;
+  in.pointlist = new REAL[3 * static_cast<std::size_t>(num_points)];
+  in.numberoffacets = num_facets;
+  in.facetlist = new tetgenio::facet[static_cast<std::size_t>(num_facets)];
+  int point_offset = 0;
+  int facet_index = 0;
+  for (const SurfaceMesh& s : surfaces) {
+    std::copy(s.points.begin(), s.points.end(), in.pointlist + 3 * point_offset);
+    for (const auto& tri : s.triangles) {
+      tetgenio::facet& f = in.facetlist[facet_index++];
+      tetgenio::init(&f);
+      f.numberofpolygons = 1;
+      f.polygonlist = new tetgenio::polygon[1];
+      tetgenio::init(&f.polygonlist[0]);
+      f.polygonlist[0].numberofvertices = 3;
+      f.polygonlist[0].vertexlist = new int[3];
+      for (int k = 0; k < 3; ++k) f.polygonlist[0].vertexlist[k] = tri[k] + point_offset;
+    }
+    point_offset += static_cast<int>(s.points.size() / 3);
+  }
+  if (with_nucleus) {
+    // Region seeds: the centre lies inside the nucleus polyhedron (attribute
+    // 1); the cytoplasm seed sits half-way between the two surfaces along the
+    // direction of icosahedron vertex 0, a vertex of both geodesic spheres, so
+    // it is strictly between the polyhedra (attribute 2).
+    const double phi = (1.0 + std::sqrt(5.0)) / 2.0;
+    const double norm = std::sqrt(1.0 + phi * phi);
+    const double shell = 0.5 * (nucleus_radius_m + outer_radius_m);
+    in.numberofregions = 2;
+    in.regionlist = new REAL[10]{0.0, 0.0, 0.0, 1.0, -1.0, -shell / norm, shell * phi / norm, 0.0, 2.0, -1.0};
+  }
+
+  // p: PLC input; q: quality bound (radius-edge ratio / min dihedral); Y: keep
+  // the surface triangulation (no Steiner points on the sphere); a: maximum
+  // volume; A: region attributes; z: zero-based indices; Q: quiet.
+  char switches[256];
+  std::snprintf(switches, sizeof(switches), "pq%.6g/%.6gYa%.9gzQ%s", options.max_radius_edge_ratio,
+                options.min_dihedral_deg, max_volume_m3, with_nucleus ? "A" : "");
+  // TetGen keeps static tables and the exact-arithmetic constants of its
+  // predicates in globals that every run rewrites: serialise the runs so that
+  // meshing from several threads (parameter sweeps) is safe.
+  static std::mutex tetgen_mutex;
+  const std::lock_guard<std::mutex> lock(tetgen_mutex);
+  try {
+    tetrahedralize(switches, &in, &out);
+  } catch (int code) {
+    return Status(StatusCode::kInternal,
+                  "TetGen failed with code " + std::to_string(code) + " (switches " + switches + ")");
+  }
+  if (out.numberoftetrahedra <= 0 || out.numberofcorners < 4) {
+    return Status(StatusCode::kInternal, "TetGen produced no tetrahedra");
+  }
+
+  TetMesh mesh;
+  mesh.positions_m.assign(out.pointlist, out.pointlist + 3 * static_cast<std::size_t>(out.numberofpoints));
+  const std::size_t num_tets = static_cast<std::size_t>(out.numberoftetrahedra);
+  mesh.tets.resize(4 * num_tets);
+  mesh.tet_region.assign(num_tets, Region::kCytoplasm);
+  for (std::size_t t = 0; t < num_tets; ++t) {
+    const int* corner = out.tetrahedronlist + t * static_cast<std::size_t>(out.numberofcorners);
+    std::int32_t* tet = &mesh.tets[4 * t];
+    for (int k = 0; k < 4; ++k) tet[k] = corner[k];
+    // Reorder to det[x1 - x4, x2 - x4, x3 - x4] > 0 (tet_mesh.h).
+    if (tet_signed_volume6(mesh.positions_m.data(), tet) < 0.0) std::swap(tet[0], tet[1]);
+    if (with_nucleus && out.numberoftetrahedronattributes > 0 &&
+        std::lround(
+            out.tetrahedronattributelist[t * static_cast<std::size_t>(out.numberoftetrahedronattributes)]) ==
+            1) {
+      mesh.tet_region[t] = Region::kNucleus;
+    }
+  }
+  mark_surface_vertices(mesh);
+  return mesh;
+}
+
+// Short decimal form for messages: 8e-06 rather than to_string's 0.000008.
+std::string format_number(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.6g", v);
+  return buffer;
+}
+
+Status validate(const SphereMeshOptions& o) {
+  if (!(o.radius_m > 0.0) || !std::isfinite(o.radius_m)) {
+    return invalid_argument("radius_m must be > 0 (got " + format_number(o.radius_m) + ")");
+  }
+  if (o.target_vertex_count < kMinVertexCount || o.target_vertex_count > kMaxVertexCount) {
+    return invalid_argument("target_vertex_count must be in [" + std::to_string(kMinVertexCount) + ", " +
+                            std::to_string(kMaxVertexCount) + "] (got " +
+                            std::to_string(o.target_vertex_count) + ")");
+  }
+  if (o.nucleus_radius_m != 0.0 && !(o.nucleus_radius_m > 0.0 && o.nucleus_radius_m < o.radius_m)) {
+    return invalid_argument("nucleus_radius_m must be 0 (no nucleus) or in (0, radius_m) = (0, " +
+                            format_number(o.radius_m) + ") (got " + format_number(o.nucleus_radius_m) + ")");
+  }
+  if (!(o.max_radius_edge_ratio >= 1.1 && o.max_radius_edge_ratio <= 10.0)) {
+    return invalid_argument("max_radius_edge_ratio must be in [1.1, 10] (got " +
+                            format_number(o.max_radius_edge_ratio) + ")");
+  }
+  if (!(o.min_dihedral_deg >= 0.0 && o.min_dihedral_deg <= 18.0)) {
+    return invalid_argument("min_dihedral_deg must be in [0, 18] (got " + format_number(o.min_dihedral_deg) +
+                            ")");
+  }
+  return Status::ok_status();
+}
+
+}  // namespace
+
+StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
+  if (Status s = validate(options); !s.ok()) return s;
+  const double radius = options.radius_m;
+  const double target = options.target_vertex_count;
+  const bool with_nucleus = options.nucleus_radius_m > 0.0;
+
+  // Size model, calibrated against TetGen 1.5 with the default quality bounds:
+  // a geodesic surface of frequency f with mean edge h, closed with maximum
+  // tet volume kUniformVolumeFactor h^3, gives interior edges of the same mean
+  // length h (a uniform mesh) and about 4.24 f^3 + 4.06 f^2 vertices in all.
+  constexpr double kUniformVolumeFactor = 0.175;
+  auto predicted_count = [](double f) { return 4.24 * f * f * f + 4.06 * f * f; };
+  auto surface_count = [](int f) { return 10.0 * f * f + 2.0; };
+  double f_real = 2.0;
+  while (predicted_count(f_real + 0.01) < target) f_real += 0.01;
+  // Of the two neighbouring frequencies take the one that needs the smaller
+  // change of the interior volume bound (uniformity of the sizes).
+  int frequency = 2;
+  double volume_scale = 1.0;
+  {
+    double best_log = 1e300;
+    for (int f : {static_cast<int>(std::floor(f_real)), static_cast<int>(std::ceil(f_real))}) {
+      f = std::max(2, f);
+      const double interior_wanted = target - surface_count(f);
+      if (interior_wanted < 1.0) continue;
+      // Interior vertex count scales like 1 / max volume.
+      const double scale = (predicted_count(f) - surface_count(f)) / interior_wanted;
+      if (std::abs(std::log(scale)) < best_log) {
+        best_log = std::abs(std::log(scale));
+        frequency = f;
+        volume_scale = scale;
+      }
+    }
+  }
+  std::vector<SurfaceMesh> surfaces;
+  surfaces.push_back(make_geodesic_sphere(frequency, radius));
+  const double spacing = mean_edge_length(surfaces[0]);
+  if (with_nucleus) {
+    // A shell thinner than half a mesh spacing cannot hold proper tets (and
+    // the two polyhedra would intersect); a nucleus smaller than that is not
+    // resolved and makes TetGen grade the mesh far past the vertex target.
+    if (options.nucleus_radius_m < 0.5 * spacing || radius - options.nucleus_radius_m < 0.5 * spacing) {
+      return invalid_argument("nucleus_radius_m must be in [h/2, radius_m - h/2] = [" +
+                              format_number(0.5 * spacing) + ", " + format_number(radius - 0.5 * spacing) +
+                              "] for target_vertex_count " + std::to_string(options.target_vertex_count) +
+                              " (mesh spacing h = " + format_number(spacing) + "); got " +
+                              format_number(options.nucleus_radius_m));
+    }
+    const int nucleus_frequency =
+        std::max(2, static_cast<int>(std::lround(frequency * options.nucleus_radius_m / radius)));
+    surfaces.push_back(make_geodesic_sphere(nucleus_frequency, options.nucleus_radius_m));
+  }
+
+  const double outer_surface_count = surface_count(frequency);
+  const double interior_target = target - outer_surface_count;
+  double max_volume = kUniformVolumeFactor * spacing * spacing * spacing * volume_scale;
+  StatusOr<TetMesh> best = Status(StatusCode::kInternal, "no mesh");
+  double best_error = 1e300;
+  // Bracket of volume bounds that gave too many (too_fine) and too few
+  // (too_coarse) vertices; the count is monotone but not continuous in the
+  // bound (TetGen's refinement can jump), so once bracketed we bisect.
+  double too_fine = 0.0;
+  double too_coarse = 0.0;
+  for (int attempt = 0; attempt < 10; ++attempt) {
+    StatusOr<TetMesh> mesh = tetrahedralize_spheres(surfaces, max_volume, options);
+    if (!mesh.ok()) return mesh.status();
+    const double count = static_cast<double>(mesh->num_vertices());
+    const double error = std::abs(count - target) / target;
+    if (error < best_error) {
+      best_error = error;
+      best = std::move(mesh);
+    }
+    if (error < 0.03) break;
+    (count > target ? too_fine : too_coarse) = max_volume;
+    if (too_fine > 0.0 && too_coarse > 0.0) {
+      max_volume = std::sqrt(too_fine * too_coarse);
+    } else {
+      // Interior vertices scale like 1 / max volume.
+      max_volume *= std::max(1.0, count - outer_surface_count) / interior_target;
+    }
+  }
+  TetMesh& mesh = best.value();
+  remove_slivers(mesh, options.min_dihedral_deg, options.max_radius_edge_ratio, radius,
+                 options.nucleus_radius_m);
+  return best;
+}
+
+}  // namespace cellflow::mesh

@@ -1,0 +1,99 @@
+#include "tools/run_job.h"
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "spec/job_spec.h"
+
+namespace cellflow::tools {
+
+namespace {
+
+std::string number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.17g", value);
+  return buffer;
+}
+
+RunOutcome outcome_for(const Status& status) {
+  RunOutcome outcome;
+  outcome.status = status;
+  switch (status.code()) {
+    case StatusCode::kOk:
+      outcome.exit_code = kExitOk;
+      break;
+    case StatusCode::kInvalidArgument:
+    case StatusCode::kNotFound:
+    case StatusCode::kFailedPrecondition:
+    case StatusCode::kResourceExhausted:
+      outcome.exit_code = kExitInvalidSpec;
+      break;
+    default:
+      outcome.exit_code = kExitNumericalFailure;
+      break;
+  }
+  return outcome;
+}
+
+}  // namespace
+
+std::string curve_csv_header() {
+  return "point,deformation,displacement_m,force_n,hertz_force_n,force_over_hertz,taylor_deformation,a1_m,a2_m,a3_"
+         "m,volume_m3,elastic_energy_j,max_penetration_m,newton_iterations,step_splits,residual";
+}
+
+std::string curve_csv_row(const scenes::CurvePoint& p) {
+  const double ratio = p.hertz_force_n > 0.0 ? p.force_n / p.hertz_force_n : 0.0;
+  std::string row = std::to_string(p.index);
+  for (double v : {p.deformation, p.displacement_m, p.force_n, p.hertz_force_n, ratio, p.taylor_deformation,
+                   p.semi_axes_m[0], p.semi_axes_m[1], p.semi_axes_m[2], p.volume_m3, p.elastic_energy_j,
+                   p.max_penetration_m}) {
+    row += ',' + number(v);
+  }
+  row += ',' + std::to_string(p.newton_iterations) + ',' + std::to_string(p.step_splits) + ',' + number(p.residual);
+  return row;
+}
+
+RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress) {
+  std::ifstream in(spec_path);
+  if (!in) return outcome_for(invalid_argument("spec file '" + spec_path + "' cannot be opened for reading"));
+  std::stringstream text;
+  text << in.rdbuf();
+  StatusOr<v1::JobSpec> spec = spec::job_spec_from_json(text.str());
+  if (!spec.ok()) return outcome_for(spec.status());
+  return run_job(*spec, csv, progress);
+}
+
+RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress) {
+  if (Status s = spec::validate(spec); !s.ok()) return outcome_for(s);
+  scenes::SceneCallbacks callbacks;
+  int total_points = 0;
+  callbacks.on_point = [&](const scenes::CurvePoint& p) {
+    csv << curve_csv_row(p) << '\n' << std::flush;
+    if (progress) {
+      char line[200];
+      std::snprintf(line, sizeof(line),
+                    "point %d/%d  deformation %.4f  force %.4g N  F/F_Hertz %.3f  Newton %d  splits %d\n",
+                    p.index + 1, total_points, p.deformation, p.force_n,
+                    p.hertz_force_n > 0 ? p.force_n / p.hertz_force_n : 0.0, p.newton_iterations, p.step_splits);
+      *progress << line << std::flush;
+    }
+  };
+  csv << curve_csv_header() << '\n' << std::flush;
+  scenes::QuasiStaticResult result;
+  if (spec.has_compression()) {
+    StatusOr<scenes::CompressionParams> params = spec::to_params(spec.compression());
+    if (!params.ok()) return outcome_for(params.status());
+    total_points = params->load_points;
+    result = scenes::run_compression(*params, callbacks);
+  } else {
+    StatusOr<scenes::IndentationParams> params = spec::to_params(spec.indentation());
+    if (!params.ok()) return outcome_for(params.status());
+    total_points = params->load_points;
+    result = scenes::run_indentation(*params, callbacks);
+  }
+  return outcome_for(result.status);
+}
+
+}  // namespace cellflow::tools

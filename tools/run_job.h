@@ -1,0 +1,41 @@
+// The logic of `cellflow-run SPEC.json`: read a job spec in the protobuf JSON
+// mapping, validate it, run its quasi-static scene and write the curve as CSV.
+// main() only parses the command line (tools/cellflow_run_main.cc).
+#pragma once
+
+#include <ostream>
+#include <string>
+
+#include "cellflow/v1/spec.pb.h"
+#include "physics/core/status.h"
+#include "physics/scenes/quasi_static.h"
+
+namespace cellflow::tools {
+
+// Exit codes of cellflow-run.
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitUsage = 1,              // bad command line
+  kExitInvalidSpec = 2,        // unreadable or invalid spec, bad mesh file; the message names the field
+  kExitNumericalFailure = 3,   // the run failed (curve so far still written)
+};
+
+// Header of the curve CSV: the column names carry their SI units.
+std::string curve_csv_header();
+// One row; doubles with 17 significant digits so they read back exactly.
+std::string curve_csv_row(const scenes::CurvePoint& point);
+
+struct RunOutcome {
+  ExitCode exit_code = kExitOk;
+  Status status;
+};
+
+// Reads the file at spec_path (JSON) and runs it.
+RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress);
+
+// Validates and runs `spec`; writes the CSV header and one row per converged
+// point to `csv` as the run goes (so a failed run keeps its curve), progress
+// lines to `progress` when it is not null.
+RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress);
+
+}  // namespace cellflow::tools

@@ -1,0 +1,155 @@
+// Lattice Boltzmann collide-stream throughput against the memory-bandwidth
+// roofline of this machine, measured in the same run.
+//
+// BM_LbStep/n/precision/scheme/coupled/threads: an n^3 D3Q19 lattice with
+// moving walls in y (plane Couette), TRT + Guo forcing; precision 0 = double,
+// 1 = float; scheme 0 = AA pattern (in place), 1 = two arrays (push);
+// coupled 1 = with the IBM force field read and the velocity field written by
+// the fused kernel. One iteration = 2 steps (both AA phases).
+//
+// Beside the timed steps, every iteration measures the memory bandwidth with
+// the same thread count (one untimed pass over 2 x 256 MiB; the median is used):
+//   copy_GBps:   a[i] = s b[i]  (STREAM "scale": 16 bytes per element counted;
+//                the write-allocate read of a is not counted, as in STREAM)
+//   update_GBps: a[i] = s a[i]  (in place: 16 bytes per element, no write-allocate)
+// Bytes per lattice update (counted like STREAM): 2 x 19 x sizeof(T), plus
+// 6 x sizeof(T) when coupled (3 force reads, 3 velocity writes).
+//   roofline_MLUPS = copy_GBps / bytes_per_update,  frac_roof = MLUPS / roofline_MLUPS
+// The AA pattern reads and writes the same lines, so its traffic really is
+// 2 x 19 x sizeof(T); a two-array update also pays the write-allocate like
+// STREAM copy does. frac_update_roof is MLUPS against update_GBps.
+//
+// The machine is shared: run with --benchmark_repetitions=5
+// --benchmark_report_aggregates_only=true and quote the medians.
+#include <benchmark/benchmark.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstddef>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "physics/lb/aligned_array.h"
+#include "physics/lb/fluid.h"
+
+namespace cellflow::lb {
+namespace {
+
+constexpr std::size_t kStreamElements = std::size_t{32} << 20;  // 256 MiB of doubles per array
+
+// Two arrays far larger than the last-level cache, first touched by the
+// threads that stream them.
+struct StreamArrays {
+  AlignedArray<double> a{kStreamElements}, b{kStreamElements};
+};
+
+StreamArrays& stream_arrays() {
+  static StreamArrays arrays;
+  return arrays;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// One pass of each bandwidth kernel; returns {copy, update} in GB/s.
+std::pair<double, double> bandwidth_sample(int threads) {
+  double* pa = stream_arrays().a.data();
+  double* pb = stream_arrays().b.data();
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(kStreamElements);
+  volatile double scale_source = 1.0;
+  const double s = scale_source;
+  const double bytes = 2.0 * sizeof(double) * static_cast<double>(n);
+  auto t0 = std::chrono::steady_clock::now();
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::ptrdiff_t i = 0; i < n; ++i) pa[i] = s * pb[i];
+  const double copy = bytes / seconds_since(t0) / 1e9;
+  t0 = std::chrono::steady_clock::now();
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::ptrdiff_t i = 0; i < n; ++i) pa[i] = s * pa[i];
+  const double update = bytes / seconds_since(t0) / 1e9;
+  benchmark::DoNotOptimize(pa[n / 2]);
+  return {copy, update};
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+void BM_LbStep(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const bool single = state.range(1) == 1;
+  const bool two_array = state.range(2) == 1;
+  const bool coupled = state.range(3) == 1;
+  const int threads = static_cast<int>(state.range(4));
+  FluidParams p;
+  p.nx = p.ny = p.nz = n;
+  p.tau = 0.8;
+  p.lower_wall_velocity = {-0.05, 0.0, 0.0};
+  p.upper_wall_velocity = {0.05, 0.0, 0.0};
+  p.force_field = coupled;
+  p.velocity_field = coupled;
+  p.precision = single ? Precision::kFloat : Precision::kDouble;
+  p.streaming = two_array ? Streaming::kTwoArray : Streaming::kAA;
+  p.threads = threads;
+  StatusOr<Fluid> made = make_fluid(p);
+  if (!made.ok()) {
+    state.SkipWithError(made.status().message().c_str());
+    return;
+  }
+  Fluid fluid = std::move(made).value();
+  collide_stream(fluid);  // touch every page once before timing
+  collide_stream(fluid);
+  bandwidth_sample(threads);
+  // The machine is shared: each iteration samples the bandwidth right before
+  // its two lattice steps (untimed), so roofline and MLUPS see the same load.
+  std::vector<double> copy, update;
+  for (auto _ : state) {
+    state.PauseTiming();
+    const auto [c, u] = bandwidth_sample(threads);
+    copy.push_back(c);
+    update.push_back(u);
+    state.ResumeTiming();
+    collide_stream(fluid);
+    collide_stream(fluid);
+  }
+  const double copy_gbps = median(copy), update_gbps = median(update);
+  const double updates =
+      2.0 * static_cast<double>(fluid.num_nodes()) * static_cast<double>(state.iterations());
+  const double value = single ? sizeof(float) : sizeof(double);
+  const double bytes_per_update = (2.0 * kQ + (coupled ? 6.0 : 0.0)) * value;
+  const double roofline_mlups = copy_gbps * 1e3 / bytes_per_update;
+  state.counters["MLUPS"] = benchmark::Counter(updates / 1e6, benchmark::Counter::kIsRate);
+  state.counters["copy_GBps"] = copy_gbps;
+  state.counters["update_GBps"] = update_gbps;
+  state.counters["bytes_per_update"] = bytes_per_update;
+  state.counters["roofline_MLUPS"] = roofline_mlups;
+  // MLUPS / roofline: a rate counter divided by the roofline.
+  state.counters["frac_roof"] =
+      benchmark::Counter(updates / 1e6 / roofline_mlups, benchmark::Counter::kIsRate);
+  state.counters["frac_update_roof"] =
+      benchmark::Counter(updates / 1e6 / (update_gbps * 1e3 / bytes_per_update), benchmark::Counter::kIsRate);
+  state.SetLabel(simd_name(best_simd()));
+}
+
+// n, precision, scheme, coupled, threads
+BENCHMARK(BM_LbStep)
+    ->ArgNames({"n", "float", "two_array", "coupled", "threads"})
+    ->ArgsProduct({{128}, {0, 1}, {0, 1}, {0, 1}, {1, 2}})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+// A lattice that fits in the last-level cache: the compute ceiling.
+BENCHMARK(BM_LbStep)
+    ->ArgNames({"n", "float", "two_array", "coupled", "threads"})
+    ->ArgsProduct({{32}, {0, 1}, {0}, {0}, {1}})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace cellflow::lb
+
+BENCHMARK_MAIN();

@@ -75,12 +75,15 @@ StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
 
 Status validate(const v1::JobSpec& spec) {
   switch (spec.scene_case()) {
-    case v1::JobSpec::kCompression: return to_params(spec.compression()).status();
-    case v1::JobSpec::kIndentation: return to_params(spec.indentation()).status();
+    case v1::JobSpec::kCompression:
+      return to_params(spec.compression()).status();
+    case v1::JobSpec::kIndentation:
+      return to_params(spec.indentation()).status();
     case v1::JobSpec::kShearFlow:
       // Wired to spec/shear_flow once the flow scene lands.
       return invalid_argument("shear_flow: not supported by this build yet");
-    case v1::JobSpec::SCENE_NOT_SET: break;
+    case v1::JobSpec::SCENE_NOT_SET:
+      break;
   }
   return invalid_argument("scene: one of compression, indentation, shear_flow must be set");
 }

@@ -1,4 +1,4 @@
-// cellflow-run SPEC.json [-o curve.csv] [--quiet]: runs a quasi-static job
+// cellflow-run SPEC.json [-o curve.csv] [--quiet] [--threads N]: runs a quasi-static job
 // spec locally and writes its force-deformation curve as CSV.
 #include <CLI/CLI.hpp>
 #include <fstream>
@@ -7,13 +7,17 @@
 #include "tools/run_job.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"Run a cellflow job spec (protobuf JSON mapping) locally; the curve goes to CSV.\n"
-               "Exit codes: 0 done, 1 usage, 2 invalid spec, 3 numerical failure (curve so far written)."};
+  CLI::App app{
+      "Run a cellflow job spec (protobuf JSON mapping) locally; the curve goes to CSV.\n"
+      "Exit codes: 0 done, 1 usage, 2 invalid spec, 3 numerical failure (curve so far written)."};
   std::string spec_path, output_path;
   bool quiet = false;
+  int threads = 0;
   app.add_option("spec", spec_path, "job spec JSON, e.g. examples/compression.json")->required();
   app.add_option("-o,--output", output_path, "curve CSV file (default: stdout)");
   app.add_flag("-q,--quiet", quiet, "no progress lines on stderr");
+  app.add_option("-j,--threads", threads, "OpenMP threads of the solve (default: the OpenMP default)")
+      ->check(CLI::NonNegativeNumber);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -30,7 +34,7 @@ int main(int argc, char** argv) {
   }
   std::ostream& csv = output_path.empty() ? std::cout : file;
   const cellflow::tools::RunOutcome outcome =
-      cellflow::tools::run_spec_file(spec_path, csv, quiet ? nullptr : &std::cerr);
+      cellflow::tools::run_spec_file(spec_path, csv, quiet ? nullptr : &std::cerr, threads);
   if (!outcome.status.ok()) std::cerr << "cellflow-run: " << outcome.status.to_string() << '\n';
   return outcome.exit_code;
 }

@@ -39,7 +39,8 @@ RunOutcome outcome_for(const Status& status) {
 }  // namespace
 
 std::string curve_csv_header() {
-  return "point,deformation,displacement_m,force_n,hertz_force_n,force_over_hertz,taylor_deformation,a1_m,a2_m,a3_"
+  return "point,deformation,displacement_m,force_n,hertz_force_n,force_over_hertz,taylor_deformation,a1_m,a2_"
+         "m,a3_"
          "m,volume_m3,elastic_energy_j,max_penetration_m,newton_iterations,step_splits,residual";
 }
 
@@ -51,21 +52,25 @@ std::string curve_csv_row(const scenes::CurvePoint& p) {
                    p.max_penetration_m}) {
     row += ',' + number(v);
   }
-  row += ',' + std::to_string(p.newton_iterations) + ',' + std::to_string(p.step_splits) + ',' + number(p.residual);
+  row += ',' + std::to_string(p.newton_iterations) + ',' + std::to_string(p.step_splits) + ',' +
+         number(p.residual);
   return row;
 }
 
-RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress) {
+RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress,
+                         int threads) {
   std::ifstream in(spec_path);
   if (!in) return outcome_for(invalid_argument("spec file '" + spec_path + "' cannot be opened for reading"));
   std::stringstream text;
   text << in.rdbuf();
   StatusOr<v1::JobSpec> spec = spec::job_spec_from_json(text.str());
   if (!spec.ok()) return outcome_for(spec.status());
-  return run_job(*spec, csv, progress);
+  return run_job(*spec, csv, progress, threads);
 }
 
-RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress) {
+RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress, int threads) {
+  if (threads < 0)
+    return outcome_for(invalid_argument("--threads = " + std::to_string(threads) + " must be >= 0"));
   if (Status s = spec::validate(spec); !s.ok()) return outcome_for(s);
   scenes::SceneCallbacks callbacks;
   int total_points = 0;
@@ -76,7 +81,8 @@ RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* pro
       std::snprintf(line, sizeof(line),
                     "point %d/%d  deformation %.4f  force %.4g N  F/F_Hertz %.3f  Newton %d  splits %d\n",
                     p.index + 1, total_points, p.deformation, p.force_n,
-                    p.hertz_force_n > 0 ? p.force_n / p.hertz_force_n : 0.0, p.newton_iterations, p.step_splits);
+                    p.hertz_force_n > 0 ? p.force_n / p.hertz_force_n : 0.0, p.newton_iterations,
+                    p.step_splits);
       *progress << line << std::flush;
     }
   };
@@ -86,11 +92,13 @@ RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* pro
     StatusOr<scenes::CompressionParams> params = spec::to_params(spec.compression());
     if (!params.ok()) return outcome_for(params.status());
     total_points = params->load_points;
+    params->numerics.threads = threads;
     result = scenes::run_compression(*params, callbacks);
   } else {
     StatusOr<scenes::IndentationParams> params = spec::to_params(spec.indentation());
     if (!params.ok()) return outcome_for(params.status());
     total_points = params->load_points;
+    params->numerics.threads = threads;
     result = scenes::run_indentation(*params, callbacks);
   }
   return outcome_for(result.status);

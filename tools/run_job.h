@@ -15,9 +15,9 @@ namespace cellflow::tools {
 // Exit codes of cellflow-run.
 enum ExitCode : int {
   kExitOk = 0,
-  kExitUsage = 1,              // bad command line
-  kExitInvalidSpec = 2,        // unreadable or invalid spec, bad mesh file; the message names the field
-  kExitNumericalFailure = 3,   // the run failed (curve so far still written)
+  kExitUsage = 1,             // bad command line
+  kExitInvalidSpec = 2,       // unreadable or invalid spec, bad mesh file; the message names the field
+  kExitNumericalFailure = 3,  // the run failed (curve so far still written)
 };
 
 // Header of the curve CSV: the column names carry their SI units.
@@ -30,12 +30,14 @@ struct RunOutcome {
   Status status;
 };
 
-// Reads the file at spec_path (JSON) and runs it.
-RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress);
+// Reads the file at spec_path (JSON) and runs it. threads > 0 overrides the
+// OpenMP thread count of the solve (0: the OpenMP default).
+RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress,
+                         int threads = 0);
 
 // Validates and runs `spec`; writes the CSV header and one row per converged
 // point to `csv` as the run goes (so a failed run keeps its curve), progress
 // lines to `progress` when it is not null.
-RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress);
+RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress, int threads = 0);
 
 }  // namespace cellflow::tools

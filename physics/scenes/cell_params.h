@@ -25,9 +25,16 @@ struct CellParams {
   std::string mesh_file;           // optional Gmsh .msh v4 ASCII; replaces the generated sphere
 };
 
+// Checks every field (all violations in one message, each naming
+// field_prefix + field and its allowed range); a mesh_file must be readable.
 Status validate(const CellParams& cell, std::string_view field_prefix);
 
-// Builds (or reads) the cell mesh for `cell`.
-StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell);
+// Builds (or reads) the cell mesh for `cell`: a TetGen sphere of
+// target_vertex_count vertices, or the Gmsh file mesh_file read in metres
+// (its volume-equivalent radius must match radius_m within a factor 1.25;
+// nucleus tetrahedra of a file take the cytoplasm material unless `nucleus`
+// is set). Errors of the mesher and the reader are carried through with the
+// field path `field_prefix` + "mesh_file" prepended.
+StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix = "cell.");
 
 }  // namespace cellflow::scenes

@@ -2,6 +2,21 @@
 // rigid plates and colloidal-probe indentation. Each load point is solved to
 // mechanical equilibrium; the curve is force against deformation with the
 // Hertz prediction beside each point (shared/validation/README.md).
+//
+// Compression: the mesh's bounding box is centred at the origin; the lower
+// plate is fixed and the upper plate starts at the penalty's zero-force
+// distance from the extreme vertices (first contact, no force at zero travel)
+// and moves down by delta = 2 R eps, eps = max_deformation (i+1)/load_points.
+// Indentation: the cell rests on the lower plate; a probe on the z axis starts
+// where its zero-force surface touches the first vertex and moves down by
+// max_indentation_m (i+1)/load_points; deformation = delta / (2R).
+// The force is the reaction on the moving plate or probe (z component). The
+// solver (physics/solver/equilibrium.h) holds the x-y position of the vertex
+// mean and the rotations (no rigid drift or rolling).
+// Failure is a result: an invalid field gives kInvalidArgument naming it, a
+// bad mesh file the reader's error, a load step that cannot converge after
+// max_step_splits halvings kNumericalFailure naming the step, its target
+// deformation and the cause; the curve computed so far is kept.
 #pragma once
 
 #include <functional>
@@ -16,14 +31,20 @@
 namespace cellflow::scenes {
 
 struct QuasiStaticOptions {
-  double residual_tolerance = 1e-6;  // |residual| / force scale E R^2 at equilibrium
-  int max_newton_iterations = 40;    // per load step, before the step is split
-  int max_step_splits = 10;          // a load step may be halved this many times
-  // Repulsive wall/probe force per vertex f = k (range - gap)^... ; unset = derived
-  // from E, R and the mesh so that penetration stays below 0.5 % of R.
+  // ||f||_2 / (E R^2) at equilibrium, f the out-of-balance vertex forces
+  // (E of the cytoplasm); in [1e-12, 1e-2]
+  double residual_tolerance = 1e-6;
+  int max_newton_iterations = 40;  // per load step, before the step is split; in [1, 1000]
+  int max_step_splits = 10;        // nested halvings of one load step; in [0, 30]
+  // Repulsive wall/probe force per surface vertex, k s^2 / r inside the range
+  // (s = r - gap <= r), then k (2 s - r) (physics/contact/rigid_contact.h).
+  // Unset: derived from E, R and the mesh edge length (contact::default_penalty:
+  // r = 5e-3 R, penetration 1e-3 R at the design force) so that penetration
+  // stays below 0.5 % of R; a range alone keeps the default force k r at
+  // zero gap. Stiffness > 0; range in (0, 0.1 R].
   std::optional<double> contact_stiffness_n_per_m;
   std::optional<double> contact_range_m;
-  int threads = 0;  // OpenMP threads for the force kernel; 0 = default
+  int threads = 0;  // OpenMP threads of forces, tangent and CG; 0 = OpenMP default; in [0, 1024]
 };
 
 struct CompressionParams {
@@ -35,8 +56,8 @@ struct CompressionParams {
 
 struct IndentationParams {
   CellParams cell;
-  double probe_radius_m = 0.0;      // > 0
-  double max_indentation_m = 0.0;   // total approach after first contact, in (0, 0.9 * 2 R)
+  double probe_radius_m = 0.0;     // > 0
+  double max_indentation_m = 0.0;  // total approach after first contact, in (0, 0.9 * 2 R)
   int load_points = 40;
   QuasiStaticOptions numerics;
 };
@@ -46,34 +67,35 @@ Status validate(const IndentationParams& params, std::string_view field_prefix =
 
 // One point of a force-deformation curve.
 struct CurvePoint {
-  int index = 0;                      // 0 .. load_points-1
-  double deformation = 0.0;           // compression: delta / (2R); indentation: delta / (2R)
-  double displacement_m = 0.0;        // plate or probe travel since first contact
-  double force_n = 0.0;               // total reaction on the moving plate or probe
-  double hertz_force_n = 0.0;         // Hertz prediction at the same displacement
+  int index = 0;                // 0 .. load_points-1
+  double deformation = 0.0;     // compression: delta / (2R); indentation: delta / (2R)
+  double displacement_m = 0.0;  // plate or probe travel since first contact
+  double force_n = 0.0;         // total reaction on the moving plate or probe
+  double hertz_force_n = 0.0;   // Hertz prediction at the same displacement
   double taylor_deformation = 0.0;
   double semi_axes_m[3] = {0, 0, 0};
   double volume_m3 = 0.0;
   double elastic_energy_j = 0.0;
-  double max_penetration_m = 0.0;     // deepest vertex beyond a plate/probe surface
-  int newton_iterations = 0;
-  int step_splits = 0;
-  double residual = 0.0;              // final relative residual
+  double max_penetration_m = 0.0;  // deepest vertex beyond a plate/probe surface
+  int newton_iterations = 0;       // all Newton iterations of this point (sub-steps included)
+  int cg_iterations = 0;           // conjugate-gradient iterations of this point
+  int step_splits = 0;             // halvings of this load step
+  double residual = 0.0;           // final relative residual
 };
 
 // Hooks a caller (cellflow-run, the worker) passes in. All optional.
 struct SceneCallbacks {
-  std::function<void(const CurvePoint&)> on_point;           // after each load point
-  std::function<void(double fraction_done)> on_progress;     // 0..1
-  std::function<bool()> should_stop;                         // true: stop, result kCancelled
+  std::function<void(const CurvePoint&)> on_point;        // after each load point
+  std::function<void(double fraction_done)> on_progress;  // 0..1
+  std::function<bool()> should_stop;                      // true: stop, result kCancelled
   // Called with the mesh once and with positions at each load point.
   std::function<void(const mesh::TetMesh&)> on_mesh;
   std::function<void(int index, std::span<const double> positions_m)> on_positions;
 };
 
 struct QuasiStaticResult {
-  Status status;                     // ok, or the failure naming the load step and cause
-  std::vector<CurvePoint> curve;     // every point computed, also on failure
+  Status status;                  // ok, or the failure naming the load step and cause
+  std::vector<CurvePoint> curve;  // every point computed, also on failure
 };
 
 QuasiStaticResult run_compression(const CompressionParams& params, const SceneCallbacks& callbacks = {});

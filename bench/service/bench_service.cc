@@ -1,0 +1,297 @@
+// bench_service: throughput and overhead of the job service on loopback,
+// with a real cellflow-server (and worker) process and a SQLite file in a
+// temporary directory.
+//
+//   1. SubmitJob acceptance rate with a small valid spec, 1 and 8 concurrent clients.
+//   2. Events per second delivered to 50 concurrent watchers of one job (this
+//      program leases the job itself and reports samples as fast as the
+//      server acknowledges them).
+//   3. Service overhead per job: wall time submit -> SUCCEEDED through the
+//      service (one warm local worker) minus run_compression in-process for
+//      the same spec (median of several runs).
+//
+//   bench_service [--submits N] [--events N] [--watchers N] [--overhead-runs N]
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cellflow/v1/worker.grpc.pb.h"
+#include "client/rpc_client.h"
+#include "physics/scenes/quasi_static.h"
+#include "spec/job_spec.h"
+
+namespace {
+
+using namespace cellflow;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+struct Server {
+  pid_t pid = -1;
+  std::string address;
+  Server(const fs::path& dir, int workers, std::vector<std::string> extra = {}) {
+    const std::string port_file = (dir / "port").string();
+    std::vector<std::string> args = {CELLFLOW_SERVER_EXE,
+                                     "--listen",
+                                     "127.0.0.1:0",
+                                     "--data-dir",
+                                     (dir / "data").string(),
+                                     "--port-file",
+                                     port_file,
+                                     "--workers",
+                                     std::to_string(workers),
+                                     "--worker-path",
+                                     CELLFLOW_WORKER_EXE,
+                                     "--log-level",
+                                     "warn"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    pid = ::fork();
+    if (pid == 0) {
+      const int fd = ::open((dir / "server.log").c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      ::dup2(fd, STDOUT_FILENO);
+      ::dup2(fd, STDERR_FILENO);
+      ::execv(argv[0], argv.data());
+      ::_exit(127);
+    }
+    for (int i = 0; i < 1000 && !fs::exists(port_file); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    int port = 0;
+    std::ifstream(port_file) >> port;
+    address = "127.0.0.1:" + std::to_string(port);
+  }
+  ~Server() {
+    ::kill(pid, SIGTERM);
+    ::waitpid(pid, nullptr, 0);
+  }
+};
+
+v1::JobSpec small_compression(int load_points, int vertices) {
+  v1::JobSpec spec;
+  auto* c = spec.mutable_compression();
+  c->mutable_cell()->set_radius_m(5e-6);
+  c->mutable_cell()->mutable_material()->set_youngs_modulus_pa(1000.0);
+  c->mutable_cell()->mutable_material()->set_poisson_ratio(0.45);
+  c->mutable_cell()->set_target_vertex_count(vertices);
+  c->set_max_deformation(0.15);
+  c->set_load_points(load_points);
+  return spec;
+}
+
+client::ClientOptions client_options(const std::string& address) {
+  client::ClientOptions options;
+  options.server = address;
+  options.timeout_s = 30;
+  return options;
+}
+
+void bench_submit(const fs::path& dir, int total, int clients) {
+  const fs::path sub = dir / ("submit" + std::to_string(clients));
+  fs::create_directories(sub);
+  Server server(sub, 0);
+  const v1::JobSpec spec = small_compression(5, 300);
+  std::atomic<int> next{0}, errors{0};
+  std::vector<std::thread> threads;
+  const auto start = Clock::now();
+  for (int c = 0; c < clients; ++c) {
+    threads.emplace_back([&] {
+      client::Client client(client_options(server.address));  // one channel per client
+      while (next.fetch_add(1) < total) {
+        v1::SubmitJobRequest request;
+        *request.mutable_spec() = spec;
+        v1::SubmitJobResponse response;
+        if (!client.submit(request, &response).ok()) ++errors;
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  const double elapsed = seconds_since(start);
+  std::printf("SubmitJob, %d client(s): %d jobs in %.3f s = %.0f jobs/s (%d errors)\n", clients, total,
+              elapsed, total / elapsed, errors.load());
+}
+
+void bench_watchers(const fs::path& dir, int events, int watchers) {
+  const fs::path sub = dir / "watch";
+  fs::create_directories(sub);
+  Server server(sub, 0);
+  client::Client client(client_options(server.address));
+  v1::SubmitJobRequest submit;
+  *submit.mutable_spec() = small_compression(events, 300);
+  v1::SubmitJobResponse submitted;
+  if (!client.submit(submit, &submitted).ok()) return;
+  const std::string job_id = submitted.job().id();
+
+  // This program is the job's worker.
+  auto worker =
+      v1::WorkerService::NewStub(grpc::CreateChannel(server.address, grpc::InsecureChannelCredentials()));
+  v1::LeaseJobRequest lease_request;
+  lease_request.set_worker_id("bench");
+  lease_request.set_wait_s(5);
+  v1::LeaseJobResponse leased;
+  {
+    grpc::ClientContext context;
+    if (!worker->LeaseJob(&context, lease_request, &leased).ok() || !leased.found()) return;
+  }
+
+  std::atomic<int> ready{0};
+  std::vector<std::atomic<int>> received(watchers);
+  std::vector<double> done_at(watchers, 0.0);
+  std::vector<std::thread> threads;
+  Clock::time_point start;
+  std::mutex start_mutex;
+  for (int w = 0; w < watchers; ++w) {
+    threads.emplace_back([&, w] {
+      client::Client c(client_options(server.address));
+      bool counted = false;
+      c.watch(job_id, 0, [&](const v1::JobEvent& event) {
+        if (!counted) {
+          counted = true;
+          ++ready;
+        }
+        if (event.has_force_sample()) {
+          if (++received[w] == events) {
+            std::lock_guard lock(start_mutex);
+            done_at[w] = seconds_since(start);
+          }
+        }
+        return !(event.has_state_change() && event.state_change().state() == v1::Job::CANCELLED);
+      });
+    });
+  }
+  while (ready.load() < watchers) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  {
+    std::lock_guard lock(start_mutex);
+    start = Clock::now();
+  }
+  grpc::ClientContext context;
+  auto stream = worker->ReportJob(&context);
+  std::thread acks([&] {
+    v1::ReportAck ack;
+    while (stream->Read(&ack)) {
+    }
+  });
+  for (int i = 0; i < events; ++i) {
+    v1::WorkerReport report;
+    *report.mutable_lease() = leased.lease();
+    report.set_report_id(i + 1);
+    report.mutable_force_sample()->set_index(i);
+    report.mutable_force_sample()->set_force_n(1e-9 * i);
+    report.mutable_force_sample()->set_deformation(0.001 * i);
+    stream->Write(report);
+  }
+  stream->WritesDone();
+  acks.join();
+  (void)stream->Finish();
+  const double reported = seconds_since(start);
+  while (true) {
+    int complete = 0;
+    for (int w = 0; w < watchers; ++w) complete += received[w].load() >= events;
+    if (complete == watchers) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const double last = *std::max_element(done_at.begin(), done_at.end());
+  v1::Job cancelled;
+  client.cancel(job_id, &cancelled);
+  for (auto& t : threads) t.join();
+  std::printf(
+      "WatchJob fan-out: %d samples reported in %.3f s (%.0f events/s stored); %d watchers received all "
+      "in %.3f s = %.0f events/s delivered\n",
+      events, reported, events / reported, watchers, last, static_cast<double>(events) * watchers / last);
+}
+
+void bench_overhead(const fs::path& dir, int runs) {
+  const fs::path sub = dir / "overhead";
+  fs::create_directories(sub);
+  // One OpenMP thread on both sides: the figure is the service's overhead,
+  // not OpenMP contention on a busy machine.
+  Server server(sub, 1, {"--worker-arg=--threads=1"});
+  client::Client client(client_options(server.address));
+  const v1::JobSpec spec = small_compression(5, 300);
+  auto params = spec::to_params(spec.compression());
+  if (!params.ok()) {
+    std::printf("overhead: %s\n", params.status().to_string().c_str());
+    return;
+  }
+  params->numerics.threads = 1;
+  std::vector<double> library, service;
+  // One job first, so the worker process is up and its first allocation done.
+  for (int r = -1; r < runs; ++r) {
+    auto t0 = Clock::now();
+    const auto result = scenes::run_compression(*params);
+    const double in_process = seconds_since(t0);
+    if (!result.status.ok()) {
+      std::printf("overhead: %s\n", result.status.to_string().c_str());
+      return;
+    }
+    t0 = Clock::now();
+    v1::SubmitJobRequest request;
+    *request.mutable_spec() = spec;
+    v1::SubmitJobResponse response;
+    if (!client.submit(request, &response).ok()) return;
+    v1::Job::State final_state = v1::Job::STATE_UNSPECIFIED;
+    client.watch(response.job().id(), 0, [&](const v1::JobEvent& e) {
+      if (e.has_state_change()) final_state = e.state_change().state();
+      return true;
+    });
+    const double through_service = seconds_since(t0);
+    if (final_state != v1::Job::SUCCEEDED) {
+      std::printf("overhead: job ended %s\n", v1::Job::State_Name(final_state).c_str());
+      return;
+    }
+    if (r >= 0) {
+      library.push_back(in_process);
+      service.push_back(through_service);
+    }
+  }
+  std::vector<double> overhead(runs);
+  for (int r = 0; r < runs; ++r) overhead[r] = service[r] - library[r];
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf(
+      "Overhead per job (compression, 300 vertices, 5 load points, 1 thread; median of %d): run_compression "
+      "%.1f ms, through the service %.1f ms, overhead %.1f ms (target < 100 ms)\n",
+      runs, 1e3 * median(library), 1e3 * median(service), 1e3 * median(overhead));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int submits = 2000, events = 2000, watchers = 50, overhead_runs = 7;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string flag = argv[i];
+    const int value = std::atoi(argv[i + 1]);
+    if (flag == "--submits") submits = value;
+    if (flag == "--events") events = value;
+    if (flag == "--watchers") watchers = value;
+    if (flag == "--overhead-runs") overhead_runs = value;
+  }
+  const fs::path dir = fs::temp_directory_path() / ("cellflow_bench_service_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  bench_submit(dir, submits, 1);
+  bench_submit(dir, submits, 8);
+  bench_watchers(dir, events, watchers);
+  bench_overhead(dir, overhead_runs);
+  fs::remove_all(dir);
+  return 0;
+}

@@ -1,0 +1,365 @@
+// cellflow: the command-line client of the cellflow job service.
+#include <google/protobuf/util/json_util.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <sstream>
+
+#include "client/curve_output.h"
+#include "client/exit_codes.h"
+#include "client/rpc_client.h"
+#include "client/watch_printer.h"
+#include "physics/io/xdmf.h"
+
+namespace {
+
+using namespace cellflow;
+using client::ExitCode;
+namespace fs = std::filesystem;
+
+int report_error(const grpc::Status& status, const std::string& what) {
+  std::fprintf(stderr, "cellflow: %s: %s (%s)\n", what.c_str(), status.error_message().c_str(),
+               status.error_code() == grpc::StatusCode::UNAVAILABLE ? "server unreachable" : "refused");
+  return client::exit_code_for(status);
+}
+
+std::string to_json(const google::protobuf::Message& message) {
+  std::string json;
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  options.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(message, &json, options);
+  return json;
+}
+
+std::string random_request_id() {
+  std::random_device device;
+  char buffer[40];
+  std::snprintf(buffer, sizeof buffer, "cli-%08x%08x%08x", device(), device(), device());
+  return buffer;
+}
+
+std::string time_string(const google::protobuf::Timestamp& t) {
+  if (t.seconds() == 0) return "-";
+  const std::time_t seconds = t.seconds();
+  char buffer[32];
+  std::strftime(buffer, sizeof buffer, "%Y-%m-%d %H:%M:%S", std::localtime(&seconds));
+  return buffer;
+}
+
+std::string scene_of(const v1::JobSpec& spec) {
+  switch (spec.scene_case()) {
+    case v1::JobSpec::kCompression:
+      return "compression";
+    case v1::JobSpec::kIndentation:
+      return "indentation";
+    case v1::JobSpec::kShearFlow:
+      return "shear_flow";
+    default:
+      return "-";
+  }
+}
+
+void print_job(const v1::Job& job) {
+  std::printf("%s  %s  %s  attempt %d  %.0f%%", job.id().c_str(), v1::Job::State_Name(job.state()).c_str(),
+              scene_of(job.spec()).c_str(), job.attempt(), 100.0 * job.fraction_done());
+  if (!job.spec().name().empty()) std::printf("  \"%s\"", job.spec().name().c_str());
+  if (!job.reason().empty()) std::printf("  reason: %s", job.reason().c_str());
+  std::printf("\n");
+}
+
+// Cell and material flags shared by both scenes.
+struct CellFlags {
+  double radius_m = 0, youngs_modulus_pa = 0, poisson_ratio = 0, w = 0;
+  int target_vertex_count = 0;
+  std::string mesh_file;
+
+  void add(CLI::App* app) {
+    app->add_option("--radius-m", radius_m, "cell radius R in metres")->required();
+    app->add_option("--youngs-modulus-pa", youngs_modulus_pa, "Young's modulus E in pascals")->required();
+    app->add_option("--poisson-ratio", poisson_ratio, "Poisson ratio nu in (-1, 0.5) (server default 0.48)");
+    app->add_option("--w", w, "Mooney-Rivlin weight w in [0, 1]; 1 = neo-Hookean (server default 1)");
+    app->add_option("--target-vertex-count", target_vertex_count,
+                    "mesh size, 200..20000 (server default 3000)");
+    app->add_option("--mesh-file", mesh_file, "Gmsh .msh v4 ASCII mesh instead of a generated sphere");
+  }
+  void fill(CLI::App* app, v1::CellSpec* cell) const {
+    cell->set_radius_m(radius_m);
+    cell->mutable_material()->set_youngs_modulus_pa(youngs_modulus_pa);
+    if (app->count("--poisson-ratio")) cell->mutable_material()->set_poisson_ratio(poisson_ratio);
+    if (app->count("--w")) cell->mutable_material()->set_mooney_rivlin_w(w);
+    if (app->count("--target-vertex-count")) cell->set_target_vertex_count(target_vertex_count);
+    if (!mesh_file.empty()) cell->set_mesh_file(mesh_file);
+  }
+};
+
+int watch(client::Client& client, const std::string& job_id, std::int64_t after, bool quiet) {
+  const bool terminal = ::isatty(STDOUT_FILENO) != 0;
+  client::WatchPrinter printer(stdout, terminal);
+  const grpc::Status status = client.watch(job_id, after, [&](const v1::JobEvent& event) {
+    if (!quiet || event.has_state_change()) printer.print(event);
+    return true;
+  });
+  printer.finish();
+  if (!status.ok()) return report_error(status, "watch " + job_id);
+  return client::exit_code_for(printer.last_state());
+}
+
+// Downloads the result of `job_id` to a temporary file (removed on exit).
+struct TemporaryResult {
+  std::string path;
+  ~TemporaryResult() {
+    if (!path.empty()) std::remove(path.c_str());
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  client::ClientOptions options;
+  if (const char* env = std::getenv("CELLFLOW_SERVER")) options.server = env;
+
+  CLI::App app{"cellflow: submit, follow and fetch cell-mechanics simulations of a cellflow server."};
+  app.footer(client::kExitCodeHelp);
+  app.require_subcommand(1);
+  app.fallthrough();  // --server and --timeout-s also after the subcommand
+  app.add_option("--server", options.server, "server address host:port (env CELLFLOW_SERVER)")
+      ->capture_default_str();
+  app.add_option("--timeout-s", options.timeout_s, "deadline of each call")->capture_default_str();
+
+  // submit
+  auto* submit = app.add_subcommand("submit", "submit a job from flags or from a JSON spec");
+  std::string spec_file, request_id, name;
+  bool submit_watch = false, print_json = false;
+  submit->add_option("--spec", spec_file, "job spec as JSON (protobuf JSON mapping of cellflow.v1.JobSpec)");
+  submit->add_option("--request-id", request_id, "idempotency key: the same id twice gives the same job");
+  submit->add_option("--name", name, "a name for the job");
+  submit->add_flag("--watch", submit_watch, "follow the job until it ends; exit with its state's code");
+  submit->add_flag("--json", print_json, "print the job as JSON");
+  submit->require_subcommand(0, 1);
+  submit->fallthrough();
+
+  CellFlags compression_cell;
+  double max_deformation = 0;
+  int compression_points = 0;
+  auto* compression = submit->add_subcommand("compression", "a cell compressed between two plates");
+  compression_cell.add(compression);
+  compression->add_option("--max-deformation", max_deformation, "final compression / diameter, in (0, 0.9]")
+      ->required();
+  compression->add_option("--load-points", compression_points, "points of the curve (server default 40)");
+
+  CellFlags indentation_cell;
+  double probe_radius_m = 0, max_indentation_m = 0;
+  int indentation_points = 0;
+  auto* indentation = submit->add_subcommand("indentation", "a spherical probe indenting a cell on a plate");
+  indentation_cell.add(indentation);
+  indentation->add_option("--probe-radius-m", probe_radius_m, "probe radius in metres")->required();
+  indentation->add_option("--max-indentation-m", max_indentation_m, "probe travel after contact, metres")
+      ->required();
+  indentation->add_option("--load-points", indentation_points, "points of the curve (server default 40)");
+
+  // watch, get, list, cancel, result, plot
+  std::string job_id, output;
+  std::int64_t after_sequence = 0;
+  bool quiet = false, csv = false;
+  auto* watch_cmd = app.add_subcommand("watch", "follow a job live: samples, progress, state changes");
+  watch_cmd->add_option("job", job_id, "job id (job-<n>)")->required();
+  watch_cmd->add_option("--after", after_sequence, "resume after this event sequence number");
+  watch_cmd->add_flag("--quiet", quiet, "print state changes only");
+
+  auto* get = app.add_subcommand("get", "show a job");
+  get->add_option("job", job_id, "job id")->required();
+  get->add_flag("--json", print_json, "print the job as JSON");
+
+  std::string state_name;
+  int page_size = 0;
+  auto* list = app.add_subcommand("list", "list jobs, oldest first");
+  list->add_option("--state", state_name, "only jobs in this state")
+      ->check(CLI::IsMember({"QUEUED", "RUNNING", "SUCCEEDED", "FAILED", "CANCELLED"}, CLI::ignore_case));
+  list->add_option("--page-size", page_size, "jobs per request");
+
+  auto* cancel = app.add_subcommand("cancel", "cancel a queued or running job");
+  cancel->add_option("job", job_id, "job id")->required();
+
+  auto* result =
+      app.add_subcommand("result", "fetch a job's result: the HDF5 file (+ XDMF) or the curve as CSV");
+  result->add_option("job", job_id, "job id")->required();
+  result->add_option("-o,--output", output, "output file (.h5; with --csv: .csv, default stdout)");
+  result->add_flag("--csv", csv, "the force-deformation curve as CSV");
+
+  auto* plot = app.add_subcommand("plot", "draw force against deformation with the Hertz curve (SVG)");
+  plot->add_option("job", job_id, "job id")->required();
+  plot->add_option("-o,--output", output, "SVG file")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? ExitCode::kExitOk : ExitCode::kExitUsage;
+  }
+
+  client::Client client(options);
+
+  if (submit->parsed()) {
+    v1::SubmitJobRequest request;
+    if (!spec_file.empty()) {
+      if (compression->parsed() || indentation->parsed()) {
+        std::fprintf(stderr, "cellflow: give either --spec or a scene, not both\n");
+        return ExitCode::kExitUsage;
+      }
+      std::ifstream in(spec_file);
+      if (!in) {
+        std::fprintf(stderr, "cellflow: cannot read %s\n", spec_file.c_str());
+        return ExitCode::kExitUsage;
+      }
+      std::stringstream text;
+      text << in.rdbuf();
+      const auto parsed = google::protobuf::util::JsonStringToMessage(text.str(), request.mutable_spec());
+      if (!parsed.ok()) {
+        std::fprintf(stderr, "cellflow: %s: %s\n", spec_file.c_str(), parsed.ToString().c_str());
+        return ExitCode::kExitInvalidArgument;
+      }
+    } else if (compression->parsed()) {
+      auto* spec = request.mutable_spec()->mutable_compression();
+      compression_cell.fill(compression, spec->mutable_cell());
+      spec->set_max_deformation(max_deformation);
+      if (compression->count("--load-points")) spec->set_load_points(compression_points);
+    } else if (indentation->parsed()) {
+      auto* spec = request.mutable_spec()->mutable_indentation();
+      indentation_cell.fill(indentation, spec->mutable_cell());
+      spec->set_probe_radius_m(probe_radius_m);
+      spec->set_max_indentation_m(max_indentation_m);
+      if (indentation->count("--load-points")) spec->set_load_points(indentation_points);
+    } else {
+      std::fprintf(stderr, "cellflow: submit needs --spec FILE.json or a scene (compression, indentation)\n");
+      return ExitCode::kExitUsage;
+    }
+    if (!name.empty()) request.mutable_spec()->set_name(name);
+    // Retries of an unanswered submit must not create a second job.
+    request.set_request_id(request_id.empty() ? random_request_id() : request_id);
+    v1::SubmitJobResponse response;
+    const grpc::Status status = client.submit(request, &response);
+    if (!status.ok()) return report_error(status, "submit");
+    if (print_json) {
+      std::printf("%s\n", to_json(response.job()).c_str());
+    } else {
+      std::printf("%s%s\n", response.job().id().c_str(),
+                  response.already_existed() ? " (already submitted)" : "");
+    }
+    std::fflush(stdout);
+    if (submit_watch) return watch(client, response.job().id(), 0, false);
+    return ExitCode::kExitOk;
+  }
+
+  if (watch_cmd->parsed()) return watch(client, job_id, after_sequence, quiet);
+
+  if (get->parsed()) {
+    v1::Job job;
+    const grpc::Status status = client.get(job_id, &job);
+    if (!status.ok()) return report_error(status, "get " + job_id);
+    if (print_json) {
+      std::printf("%s\n", to_json(job).c_str());
+    } else {
+      print_job(job);
+      std::printf("  created %s  started %s  ended %s\n", time_string(job.create_time()).c_str(),
+                  time_string(job.start_time()).c_str(), time_string(job.end_time()).c_str());
+      if (job.state() == v1::Job::RUNNING && job.estimated_remaining_s() >= 0) {
+        std::printf("  about %.0f s left\n", job.estimated_remaining_s());
+      }
+      if (job.result_size_bytes() > 0)
+        std::printf("  result: %lld bytes\n", static_cast<long long>(job.result_size_bytes()));
+    }
+    return ExitCode::kExitOk;
+  }
+
+  if (list->parsed()) {
+    v1::ListJobsRequest request;
+    if (!state_name.empty()) {
+      v1::Job::State state = v1::Job::STATE_UNSPECIFIED;
+      for (auto& c : state_name) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      v1::Job::State_Parse(state_name, &state);
+      request.set_state(state);
+    }
+    request.set_page_size(page_size);
+    do {
+      v1::ListJobsResponse response;
+      const grpc::Status status = client.list(request, &response);
+      if (!status.ok()) return report_error(status, "list");
+      for (const auto& job : response.jobs()) print_job(job);
+      request.set_page_token(response.next_page_token());
+    } while (!request.page_token().empty());
+    return ExitCode::kExitOk;
+  }
+
+  if (cancel->parsed()) {
+    v1::Job job;
+    const grpc::Status status = client.cancel(job_id, &job);
+    if (!status.ok()) return report_error(status, "cancel " + job_id);
+    print_job(job);
+    return ExitCode::kExitOk;
+  }
+
+  if (result->parsed() || plot->parsed()) {
+    const bool want_file = result->parsed() && !csv;
+    if (want_file && output.empty()) {
+      std::fprintf(stderr, "cellflow: result needs -o FILE.h5 or --csv\n");
+      return ExitCode::kExitUsage;
+    }
+    TemporaryResult temporary;
+    std::string h5 = output;
+    if (!want_file) {
+      temporary.path =
+          (fs::temp_directory_path() / ("cellflow-" + job_id + "-" + std::to_string(::getpid()) + ".h5"))
+              .string();
+      h5 = temporary.path;
+    }
+    const grpc::Status status = client.download(job_id, h5);
+    if (!status.ok()) return report_error(status, "result " + job_id);
+    if (want_file) {
+      const std::string xdmf = (fs::path(h5).replace_extension(".xdmf")).string();
+      if (Status s = io::write_xdmf(h5, xdmf); s.ok()) {
+        std::printf("%s\n%s\n", h5.c_str(), xdmf.c_str());
+      } else {
+        std::printf("%s\n", h5.c_str());
+        std::fprintf(stderr, "cellflow: no XDMF file: %s\n", s.to_string().c_str());
+      }
+      return ExitCode::kExitOk;
+    }
+    auto curve = client::read_curve(h5);
+    if (!curve.ok()) {
+      std::fprintf(stderr, "cellflow: %s\n", curve.status().to_string().c_str());
+      return ExitCode::kExitNotFound;
+    }
+    std::string text;
+    if (plot->parsed()) {
+      v1::Job job;
+      std::string title = job_id;
+      if (client.get(job_id, &job).ok()) {
+        title +=
+            " (" + scene_of(job.spec()) + (job.spec().name().empty() ? "" : ", " + job.spec().name()) + ")";
+      }
+      text = client::curve_svg(*curve, title);
+    } else {
+      text = client::curve_csv(*curve);
+    }
+    if (output.empty()) {
+      std::fwrite(text.data(), 1, text.size(), stdout);
+      return ExitCode::kExitOk;
+    }
+    std::ofstream out(output, std::ios::binary | std::ios::trunc);
+    out << text;
+    if (!out) {
+      std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
+      return ExitCode::kExitUsage;
+    }
+    std::printf("%s\n", output.c_str());
+    return ExitCode::kExitOk;
+  }
+  return ExitCode::kExitUsage;
+}

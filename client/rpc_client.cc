@@ -1,0 +1,147 @@
+#include "client/rpc_client.h"
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+namespace cellflow::client {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::shared_ptr<grpc::Channel> make_channel(const std::string& server) {
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+  return grpc::CreateCustomChannel(server, grpc::InsecureChannelCredentials(), args);
+}
+
+}  // namespace
+
+Client::Client(ClientOptions options) : Client(options, make_channel(options.server)) {}
+
+Client::Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel)
+    : options_(std::move(options)),
+      channel_(std::move(channel)),
+      stub_(v1::CellflowService::NewStub(channel_)) {}
+
+void Client::set_deadline(grpc::ClientContext& context) const {
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::milliseconds(static_cast<std::int64_t>(options_.timeout_s * 1000)));
+}
+
+grpc::Status Client::with_retry(const std::function<grpc::Status(grpc::ClientContext&)>& call) const {
+  auto wait = 250ms;
+  grpc::Status status;
+  for (int attempt = 1;; ++attempt) {
+    grpc::ClientContext context;
+    set_deadline(context);
+    status = call(context);
+    // Only UNAVAILABLE is safe to retry: the call did not reach the service.
+    // (SubmitJob is idempotent anyway when it carries a request_id.)
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE || attempt >= options_.max_attempts)
+      return status;
+    std::this_thread::sleep_for(wait);
+    wait *= 2;
+  }
+}
+
+grpc::Status Client::submit(const v1::SubmitJobRequest& request, v1::SubmitJobResponse* response) {
+  return with_retry([&](grpc::ClientContext& c) { return stub_->SubmitJob(&c, request, response); });
+}
+
+grpc::Status Client::get(const std::string& job_id, v1::Job* job) {
+  v1::GetJobRequest request;
+  request.set_job_id(job_id);
+  return with_retry([&](grpc::ClientContext& c) { return stub_->GetJob(&c, request, job); });
+}
+
+grpc::Status Client::list(const v1::ListJobsRequest& request, v1::ListJobsResponse* response) {
+  return with_retry([&](grpc::ClientContext& c) { return stub_->ListJobs(&c, request, response); });
+}
+
+grpc::Status Client::cancel(const std::string& job_id, v1::Job* job) {
+  v1::CancelJobRequest request;
+  request.set_job_id(job_id);
+  return with_retry([&](grpc::ClientContext& c) { return stub_->CancelJob(&c, request, job); });
+}
+
+grpc::Status Client::watch(const std::string& job_id, std::int64_t after_sequence,
+                           const std::function<bool(const v1::JobEvent&)>& on_event) {
+  auto wait = 100ms;
+  auto unreachable_since = Clock::now();
+  while (true) {
+    grpc::ClientContext context;
+    v1::WatchJobRequest request;
+    request.set_job_id(job_id);
+    request.set_after_sequence(after_sequence);
+    auto reader = stub_->WatchJob(&context, request);
+    v1::JobEvent event;
+    bool stopped = false;
+    while (reader->Read(&event)) {
+      unreachable_since = Clock::now();
+      wait = 100ms;
+      after_sequence = event.sequence();
+      if (!on_event(event)) {
+        stopped = true;
+        context.TryCancel();
+        break;
+      }
+    }
+    const grpc::Status status = reader->Finish();
+    if (stopped) return {grpc::StatusCode::CANCELLED, "stopped by the caller"};
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return status;
+    if (Clock::now() - unreachable_since >
+        std::chrono::milliseconds(static_cast<std::int64_t>(options_.reconnect_s * 1000))) {
+      return status;
+    }
+    std::this_thread::sleep_for(wait);
+    wait = std::min(wait * 2, std::chrono::milliseconds(2000));
+  }
+}
+
+grpc::Status Client::download(const std::string& job_id, const std::string& path) {
+  const std::string partial = path + ".part";
+  auto wait = 250ms;
+  for (int attempt = 1;; ++attempt) {
+    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+    if (!out) return {grpc::StatusCode::INVALID_ARGUMENT, "cannot write " + partial};
+    grpc::ClientContext context;
+    v1::DownloadResultRequest request;
+    request.set_job_id(job_id);
+    auto reader = stub_->DownloadResult(&context, request);
+    v1::ResultChunk chunk;
+    std::int64_t received = 0;
+    std::int64_t total = -1;
+    while (reader->Read(&chunk)) {
+      if (chunk.offset() != received) {
+        context.TryCancel();
+        break;
+      }
+      out.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
+      received += static_cast<std::int64_t>(chunk.data().size());
+      total = chunk.total_size_bytes();
+    }
+    grpc::Status status = reader->Finish();
+    out.close();
+    if (status.ok() && total >= 0 && received != total) {
+      status = {grpc::StatusCode::DATA_LOSS,
+                "received " + std::to_string(received) + " of " + std::to_string(total)};
+    }
+    if (status.ok()) {
+      if (std::rename(partial.c_str(), path.c_str()) != 0)
+        return {grpc::StatusCode::INTERNAL, "cannot write " + path};
+      return status;
+    }
+    std::remove(partial.c_str());
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE || attempt >= options_.max_attempts)
+      return status;
+    std::this_thread::sleep_for(wait);
+    wait *= 2;
+  }
+}
+
+}  // namespace cellflow::client

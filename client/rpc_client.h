@@ -1,0 +1,55 @@
+// A thin client of cellflow.v1.CellflowService for the CLI, the integration
+// tests and the benchmark: a deadline on every unary call, retries of
+// UNAVAILABLE only (with backoff), and a watch that resumes from the last
+// sequence it saw after a broken stream.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "cellflow/v1/service.grpc.pb.h"
+
+namespace cellflow::client {
+
+struct ClientOptions {
+  std::string server = "127.0.0.1:50051";
+  double timeout_s = 10.0;    // deadline of each unary call
+  int max_attempts = 4;       // tries of a call answered UNAVAILABLE
+  double reconnect_s = 60.0;  // how long watch/download keep reconnecting
+};
+
+class Client {
+ public:
+  explicit Client(ClientOptions options);
+  Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel);
+
+  grpc::Status submit(const v1::SubmitJobRequest& request, v1::SubmitJobResponse* response);
+  grpc::Status get(const std::string& job_id, v1::Job* job);
+  grpc::Status list(const v1::ListJobsRequest& request, v1::ListJobsResponse* response);
+  grpc::Status cancel(const std::string& job_id, v1::Job* job);
+  // Calls on_event for every event after `after_sequence`, in order, until the
+  // terminal state event (OK), on_event returns false (CANCELLED) or the
+  // server stays unreachable for reconnect_s. Reconnects resume after the
+  // last sequence seen, so no event is seen twice.
+  grpc::Status watch(const std::string& job_id, std::int64_t after_sequence,
+                     const std::function<bool(const v1::JobEvent&)>& on_event);
+  // Writes the job's result file to `path` (via path.part, renamed when complete).
+  grpc::Status download(const std::string& job_id, const std::string& path);
+
+  v1::CellflowService::Stub& stub() { return *stub_; }
+  const ClientOptions& options() const { return options_; }
+
+ private:
+  void set_deadline(grpc::ClientContext& context) const;
+  grpc::Status with_retry(const std::function<grpc::Status(grpc::ClientContext&)>& call) const;
+
+  ClientOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::CellflowService::Stub> stub_;
+};
+
+}  // namespace cellflow::client

@@ -1,0 +1,102 @@
+// Job results as HDF5 files in the H5MD 1.1 layout (https://nongnu.org/h5md/):
+//
+//   /h5md                       attribute version = {1, 1}; groups author, creator
+//   /particles/<group>/box      attributes dimension = 3, boundary = none
+//   /particles/<group>/position/{step, time, value}   value: [frames][N][3], metres
+//   /connectivity/<group>       [M][4] vertex indices of the tetrahedra
+//   /connectivity/<group>_region  [M] region id per tetrahedron (0 cytoplasm, 1 nucleus)
+//   /observables/<name>/{step, time, value}   value: [n] or [n][width]
+//   /parameters/job_spec_json   the job spec (protobuf JSON mapping), a string
+//   /xdmf/<group>/frame_<k>     [N][3] copy of position frame k for the XDMF sidecar
+//
+// The writer is generic: frames of positions, named time series and a JSON
+// string, so every scene (quasi-static curves, shear flow) writes through it.
+// It flushes on flush(); a process killed after a flush leaves a file that
+// opens and holds every record written before that flush.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "physics/core/status.h"
+
+namespace cellflow::io {
+
+struct H5mdCreator {
+  std::string author = "cellflow";        // /h5md/author name
+  std::string program = "cellflow";       // /h5md/creator name
+  std::string program_version = "0.1.0";  // /h5md/creator version
+  // Unit of the "time" datasets. Quasi-static scenes have no physical time:
+  // they store the load parameter (deformation) there and say so here.
+  std::string time_unit = "s";
+};
+
+// A time series read back from /observables/<name>.
+struct TimeSeries {
+  std::vector<std::int64_t> step;
+  std::vector<double> time;
+  std::vector<double> value;  // step.size() * width values, row-major
+  int width = 1;              // values per step
+};
+
+class H5mdWriter {
+ public:
+  // Creates `path`, replacing an existing file.
+  static StatusOr<std::unique_ptr<H5mdWriter>> create(const std::string& path,
+                                                      const H5mdCreator& creator = {});
+  ~H5mdWriter();
+  H5mdWriter(const H5mdWriter&) = delete;
+  H5mdWriter& operator=(const H5mdWriter&) = delete;
+
+  // The tetrahedra of particle group `group` (4 vertex indices each) and an
+  // optional region id per tetrahedron (empty: none stored).
+  Status write_tetrahedra(std::string_view group, std::span<const std::int32_t> tets,
+                          std::span<const std::uint8_t> region);
+  // Appends one frame of positions (3 per particle, metres) at (step, time).
+  // Every frame of a group has the same particle count.
+  Status append_positions(std::string_view group, std::int64_t step, double time,
+                          std::span<const double> positions_m);
+  // Appends one record to /observables/<name>; the width (values.size()) is
+  // fixed by the first record.
+  Status append_observable(std::string_view name, std::int64_t step, double time,
+                           std::span<const double> values);
+  Status append_observable(std::string_view name, std::int64_t step, double time, double value) {
+    return append_observable(name, step, time, std::span<const double>(&value, 1));
+  }
+  // Stores the job spec JSON as /parameters/job_spec_json (written once).
+  Status write_parameters_json(std::string_view json);
+  // Makes everything written so far durable in the file.
+  Status flush();
+  // Flushes and closes; the destructor does the same, ignoring errors.
+  Status close();
+
+  const std::string& path() const { return path_; }
+
+ private:
+  struct Impl;
+  H5mdWriter(std::string path, std::unique_ptr<Impl> impl);
+  std::string path_;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Reads /observables/<name>.
+StatusOr<TimeSeries> read_observable(const std::string& path, std::string_view name);
+// Names of the groups under /observables, sorted.
+StatusOr<std::vector<std::string>> list_observables(const std::string& path);
+// /parameters/job_spec_json.
+StatusOr<std::string> read_parameters_json(const std::string& path);
+// Frame `frame` of /particles/<group>/position/value as 3 * N doubles, with its step and time.
+struct PositionFrame {
+  std::int64_t step = 0;
+  double time = 0.0;
+  std::vector<double> positions_m;
+};
+StatusOr<PositionFrame> read_position_frame(const std::string& path, std::string_view group, int frame);
+// Number of position frames stored for `group`.
+StatusOr<int> count_position_frames(const std::string& path, std::string_view group);
+
+}  // namespace cellflow::io

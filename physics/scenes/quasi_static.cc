@@ -1,0 +1,322 @@
+#include "physics/scenes/quasi_static.h"
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <string>
+
+#include "physics/contact/rigid_contact.h"
+#include "physics/elastic/elastic_body.h"
+#include "physics/mesh/sphere_mesh.h"
+#include "physics/observables/shape.h"
+#include "physics/solver/equilibrium.h"
+#include "physics/solver/load_path.h"
+
+namespace cellflow::scenes {
+
+namespace {
+
+std::string format_number(double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
+
+void add_violation(std::string& message, std::string_view text) {
+  if (!message.empty()) message += "; ";
+  message += text;
+}
+
+// Allowed ranges of the numerics (QuasiStaticNumerics in spec.proto).
+constexpr double kMinResidualTolerance = 1e-12, kMaxResidualTolerance = 1e-2;
+constexpr int kMaxNewtonIterations = 1000;
+constexpr int kMaxStepSplits = 30;
+constexpr int kMaxLoadPoints = 100000;
+// A contact range beyond a tenth of the radius would blur the first contact.
+constexpr double kMaxContactRangeRadii = 0.1;
+
+void validate_numerics(const QuasiStaticOptions& n, double radius_m, const std::string& prefix,
+                       std::string& message) {
+  if (!(n.residual_tolerance >= kMinResidualTolerance && n.residual_tolerance <= kMaxResidualTolerance)) {
+    add_violation(message, prefix + "residual_tolerance = " + format_number(n.residual_tolerance) +
+                               " must lie in [1e-12, 0.01]");
+  }
+  if (n.max_newton_iterations < 1 || n.max_newton_iterations > kMaxNewtonIterations) {
+    add_violation(message, prefix + "max_newton_iterations = " + std::to_string(n.max_newton_iterations) +
+                               " must lie in [1, 1000]");
+  }
+  if (n.max_step_splits < 0 || n.max_step_splits > kMaxStepSplits) {
+    add_violation(message,
+                  prefix + "max_step_splits = " + std::to_string(n.max_step_splits) + " must lie in [0, 30]");
+  }
+  if (n.contact_stiffness_n_per_m &&
+      !(*n.contact_stiffness_n_per_m > 0.0 && std::isfinite(*n.contact_stiffness_n_per_m))) {
+    add_violation(message, prefix +
+                               "contact_stiffness_n_per_m = " + format_number(*n.contact_stiffness_n_per_m) +
+                               " must be > 0 and finite (or unset for the derived default)");
+  }
+  if (n.contact_range_m &&
+      !(*n.contact_range_m > 0.0 && *n.contact_range_m <= kMaxContactRangeRadii * radius_m)) {
+    add_violation(message, prefix + "contact_range_m = " + format_number(*n.contact_range_m) +
+                               " must lie in (0, 0.1 radius_m] = (0, " +
+                               format_number(kMaxContactRangeRadii * radius_m) +
+                               "] (or unset for the default)");
+  }
+  if (n.threads < 0 || n.threads > 1024) {
+    add_violation(message, prefix + "threads = " + std::to_string(n.threads) + " must lie in [0, 1024]");
+  }
+}
+
+void validate_load_points(int load_points, const std::string& prefix, std::string& message) {
+  if (load_points < 1 || load_points > kMaxLoadPoints) {
+    add_violation(message,
+                  prefix + "load_points = " + std::to_string(load_points) + " must lie in [1, 100000]");
+  }
+}
+
+// Everything a quasi-static run sets up before its first load step.
+struct Setup {
+  mesh::TetMesh mesh;  // centred at the origin
+  elastic::ElasticBody body;
+  std::vector<std::int32_t> surface_vertices;
+  contact::PenaltyParams penalty;
+  double z_top_m = 0.0, z_bottom_m = 0.0;  // extreme surface vertex heights
+};
+
+StatusOr<Setup> prepare(const CellParams& cell, const QuasiStaticOptions& numerics, std::string_view prefix) {
+  Setup setup;
+  StatusOr<mesh::TetMesh> built = build_cell_mesh(cell, std::string(prefix) + "cell.");
+  if (!built.ok()) return built.status();
+  setup.mesh = std::move(built).value();
+  mesh::TetMesh& m = setup.mesh;
+  // Centre the bounding box at the origin.
+  std::array<double, 3> lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (std::size_t v = 0; v < m.num_vertices(); ++v) {
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], m.positions_m[3 * v + a]);
+      hi[a] = std::max(hi[a], m.positions_m[3 * v + a]);
+    }
+  }
+  for (std::size_t v = 0; v < m.num_vertices(); ++v) {
+    for (int a = 0; a < 3; ++a) m.positions_m[3 * v + a] -= 0.5 * (lo[a] + hi[a]);
+  }
+  setup.z_top_m = 0.5 * (hi[2] - lo[2]);
+  setup.z_bottom_m = -setup.z_top_m;
+  // Nucleus tets of a file without nucleus parameters take the cytoplasm material.
+  const std::array<elastic::Material, 2> materials{cell.material,
+                                                   cell.nucleus ? cell.nucleus->material : cell.material};
+  StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(m, materials);
+  if (!body.ok()) {
+    return Status(body.status().code(), std::string(prefix) + "cell: " + body.status().message());
+  }
+  setup.body = std::move(body).value();
+  for (std::size_t v = 0; v < m.num_vertices(); ++v) {
+    if (m.on_surface[v]) setup.surface_vertices.push_back(static_cast<std::int32_t>(v));
+  }
+  const mesh::MeshQuality quality = mesh::mesh_quality(m);
+  setup.penalty =
+      contact::default_penalty(cell.material.youngs_modulus_pa, cell.radius_m, quality.mean_edge_length_m);
+  if (numerics.contact_range_m) {
+    // keep the default's force at zero gap (k r) when only the range is given
+    const double force_at_contact = setup.penalty.stiffness_n_per_m * setup.penalty.range_m;
+    setup.penalty.range_m = *numerics.contact_range_m;
+    setup.penalty.stiffness_n_per_m = force_at_contact / setup.penalty.range_m;
+  }
+  if (numerics.contact_stiffness_n_per_m)
+    setup.penalty.stiffness_n_per_m = *numerics.contact_stiffness_n_per_m;
+  return setup;
+}
+
+solver::EquilibriumOptions solver_options(const QuasiStaticOptions& numerics, const CellParams& cell) {
+  solver::EquilibriumOptions o;
+  o.residual_tolerance = numerics.residual_tolerance;
+  o.max_newton_iterations = numerics.max_newton_iterations;
+  // E R^2: the force scale of the cell (Hertz: F = (4/3) E* R^2 eps^1.5)
+  o.force_scale_n = cell.material.youngs_modulus_pa * cell.radius_m * cell.radius_m;
+  o.threads = numerics.threads;
+  return o;
+}
+
+// Runs the load points of a quasi-static scene. `measure` fills the
+// scene-specific fields (force, Hertz) of a point from the converged state.
+template <class Measure>
+QuasiStaticResult run_load_points(Setup& setup, const CellParams& cell, const QuasiStaticOptions& numerics,
+                                  solver::ObstaclesAtLoad obstacles, double max_travel_m, int load_points,
+                                  const SceneCallbacks& callbacks, Measure measure) {
+  QuasiStaticResult result;
+  if (callbacks.on_mesh) callbacks.on_mesh(setup.mesh);
+  solver::EquilibriumSolver solver(setup.body, setup.surface_vertices, solver_options(numerics, cell));
+  solver::LoadPath path(solver, std::move(obstacles), setup.mesh.positions_m, 0.0);
+  const double diameter = 2.0 * cell.radius_m;
+  for (int i = 0; i < load_points; ++i) {
+    if (callbacks.should_stop && callbacks.should_stop()) {
+      result.status =
+          Status(StatusCode::kCancelled, "stopped on request before load point " + std::to_string(i));
+      return result;
+    }
+    const double travel = max_travel_m * (i + 1) / load_points;
+    const solver::LoadStepReport step = path.advance_to(travel, numerics.max_step_splits);
+    if (!step.converged) {
+      result.status = numerical_failure("load step " + std::to_string(i) + " of " +
+                                        std::to_string(load_points) + " (target deformation " +
+                                        format_number(travel / diameter) + "): " + step.message);
+      return result;
+    }
+    CurvePoint point;
+    point.index = i;
+    point.deformation = travel / diameter;
+    point.displacement_m = travel;
+    const std::vector<double>& y = path.positions_m();
+    measure(step.last, travel, point);
+    const observables::Shape shape = observables::measure_shape(setup.mesh, y.data());
+    point.taylor_deformation = shape.taylor_deformation;
+    for (int a = 0; a < 3; ++a) point.semi_axes_m[a] = shape.semi_axes_m[a];
+    point.volume_m3 = shape.volume_m3;
+    point.elastic_energy_j = step.last.elastic_energy_j;
+    point.max_penetration_m = step.last.contact.max_penetration_m;
+    point.newton_iterations = step.newton_iterations;
+    point.cg_iterations = step.cg_iterations;
+    point.step_splits = step.step_splits;
+    point.residual = step.last.residual;
+    result.curve.push_back(point);
+    if (callbacks.on_point) callbacks.on_point(point);
+    if (callbacks.on_positions) callbacks.on_positions(i, y);
+    if (callbacks.on_progress) callbacks.on_progress(static_cast<double>(i + 1) / load_points);
+  }
+  return result;
+}
+
+}  // namespace
+
+Status validate(const CompressionParams& params, std::string_view field_prefix) {
+  const std::string prefix(field_prefix);
+  std::string message;
+  if (Status s = validate(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
+  if (!(params.max_deformation > 0.0 && params.max_deformation <= 0.9)) {
+    add_violation(message, prefix + "max_deformation = " + format_number(params.max_deformation) +
+                               " must lie in (0, 0.9]");
+  }
+  validate_load_points(params.load_points, prefix, message);
+  validate_numerics(params.numerics, params.cell.radius_m, prefix + "numerics.", message);
+  if (message.empty()) return Status::ok_status();
+  return invalid_argument(std::move(message));
+}
+
+Status validate(const IndentationParams& params, std::string_view field_prefix) {
+  const std::string prefix(field_prefix);
+  std::string message;
+  if (Status s = validate(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
+  if (!(params.probe_radius_m > 0.0 && std::isfinite(params.probe_radius_m))) {
+    add_violation(message, prefix + "probe_radius_m = " + format_number(params.probe_radius_m) +
+                               " must be > 0 and finite");
+  }
+  const double max_travel = 1.8 * params.cell.radius_m;
+  if (!(params.max_indentation_m > 0.0 && params.max_indentation_m < max_travel)) {
+    add_violation(message, prefix + "max_indentation_m = " + format_number(params.max_indentation_m) +
+                               " must lie in (0, 1.8 cell.radius_m) = (0, " + format_number(max_travel) +
+                               ")");
+  }
+  validate_load_points(params.load_points, prefix, message);
+  validate_numerics(params.numerics, params.cell.radius_m, prefix + "numerics.", message);
+  if (message.empty()) return Status::ok_status();
+  return invalid_argument(std::move(message));
+}
+
+QuasiStaticResult run_compression(const CompressionParams& params, const SceneCallbacks& callbacks) {
+  QuasiStaticResult result;
+  if (Status s = validate(params); !s.ok()) {
+    result.status = s;
+    return result;
+  }
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "compression.");
+  if (!prepared.ok()) {
+    result.status = prepared.status();
+    return result;
+  }
+  Setup& setup = *prepared;
+  // Plates start at the zero-force distance (the penalty range) from the
+  // extreme vertices: first contact, no force at zero travel.
+  const double range = setup.penalty.range_m;
+  const double lower_z = setup.z_bottom_m - range;
+  const double upper_z0 = setup.z_top_m + range;
+  const contact::PenaltyParams penalty = setup.penalty;
+  auto obstacles = [=](double travel_m) {
+    contact::Obstacles o;
+    o.penalty = penalty;
+    o.lower_plate_z_m = lower_z;
+    o.upper_plate_z_m = upper_z0 - travel_m;
+    return o;
+  };
+  const CellParams& cell = params.cell;
+  auto measure = [&](const solver::EquilibriumReport& eq, double travel_m, CurvePoint& point) {
+    point.force_n = eq.contact.upper_plate_reaction_n;
+    point.hertz_force_n = hertz_plates_force_n(cell.material, cell.radius_m, travel_m);
+  };
+  const double max_travel = params.max_deformation * 2.0 * cell.radius_m;
+  return run_load_points(setup, cell, params.numerics, obstacles, max_travel, params.load_points, callbacks,
+                         measure);
+}
+
+QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCallbacks& callbacks) {
+  QuasiStaticResult result;
+  if (Status s = validate(params); !s.ok()) {
+    result.status = s;
+    return result;
+  }
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "indentation.");
+  if (!prepared.ok()) {
+    result.status = prepared.status();
+    return result;
+  }
+  Setup& setup = *prepared;
+  const double range = setup.penalty.range_m;
+  const double lower_z = setup.z_bottom_m - range;
+  // Probe on the z axis, lowered until its zero-force surface (radius Rp + r)
+  // touches the first surface vertex: z_c = max_v z_v + sqrt((Rp + r)^2 - rho_v^2).
+  const double reach = params.probe_radius_m + range;
+  double centre_z0 = setup.z_top_m + reach;
+  double lowest = -1e300;
+  for (const std::int32_t v : setup.surface_vertices) {
+    const double* p = setup.mesh.positions_m.data() + 3 * static_cast<std::size_t>(v);
+    const double rho2 = p[0] * p[0] + p[1] * p[1];
+    if (rho2 < reach * reach) lowest = std::max(lowest, p[2] + std::sqrt(reach * reach - rho2));
+  }
+  if (lowest > -1e300) centre_z0 = lowest;
+  const contact::PenaltyParams penalty = setup.penalty;
+  const double probe_radius = params.probe_radius_m;
+  auto obstacles = [=](double travel_m) {
+    contact::Obstacles o;
+    o.penalty = penalty;
+    o.lower_plate_z_m = lower_z;
+    o.probe = contact::Probe{.centre_m = {0.0, 0.0, centre_z0 - travel_m}, .radius_m = probe_radius};
+    return o;
+  };
+  const CellParams& cell = params.cell;
+  auto measure = [&](const solver::EquilibriumReport& eq, double travel_m, CurvePoint& point) {
+    point.force_n = eq.contact.probe_reaction_n[2];
+    point.hertz_force_n = hertz_probe_force_n(cell.material, cell.radius_m, probe_radius, travel_m);
+  };
+  return run_load_points(setup, cell, params.numerics, obstacles, params.max_indentation_m,
+                         params.load_points, callbacks, measure);
+}
+
+double hertz_plates_force_n(const elastic::Material& m, double radius_m, double compression_m) {
+  // E* = E / (1 - nu^2);  F = (4/3) E* R^2 eps^(3/2), eps = delta / (2R)   (validation/README.md, Hertz)
+  const double e_star = m.youngs_modulus_pa / (1.0 - m.poisson_ratio * m.poisson_ratio);
+  const double eps = std::max(0.0, compression_m) / (2.0 * radius_m);
+  return 4.0 / 3.0 * e_star * radius_m * radius_m * std::pow(eps, 1.5);
+}
+
+double hertz_probe_force_n(const elastic::Material& m, double radius_m, double probe_radius_m,
+                           double indentation_m) {
+  const double e_star = m.youngs_modulus_pa / (1.0 - m.poisson_ratio * m.poisson_ratio);
+  // R12 = Rp Rc / (Rp + Rc): the top contact, rigid sphere on the cell
+  const double r12 = probe_radius_m * radius_m / (probe_radius_m + radius_m);
+  // equal force (4/3) E* sqrt(R12) d_top^1.5 = (4/3) E* sqrt(Rc) d_bottom^1.5
+  //   -> d_bottom = d_top (R12 / Rc)^(1/3);  d_top + d_bottom = delta
+  const double d_top = std::max(0.0, indentation_m) / (1.0 + std::cbrt(r12 / radius_m));
+  return 4.0 / 3.0 * e_star * std::sqrt(r12) * std::pow(d_top, 1.5);
+}
+
+}  // namespace cellflow::scenes

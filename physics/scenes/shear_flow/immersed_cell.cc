@@ -1,0 +1,148 @@
+#include "physics/scenes/shear_flow/immersed_cell.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace cellflow::scenes {
+
+namespace {
+
+// Nodes a spread of the points can touch: the bounding box widened by the
+// kernel width (a generous bound on the stencil reach).
+NodeBox support_of(const std::vector<double>& points, int width) {
+  NodeBox box;
+  const std::size_t n = points.size() / 3;
+  if (n == 0) return box;
+  double lo[3] = {points[0], points[1], points[2]};
+  double hi[3] = {points[0], points[1], points[2]};
+  for (std::size_t p = 1; p < n; ++p) {
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], points[3 * p + d]);
+      hi[d] = std::max(hi[d], points[3 * p + d]);
+    }
+  }
+  for (int d = 0; d < 3; ++d) {
+    if (!std::isfinite(lo[d]) || !std::isfinite(hi[d])) return NodeBox{};
+    box.lo[d] = static_cast<int>(std::floor(lo[d])) - width;
+    box.hi[d] = static_cast<int>(std::ceil(hi[d])) + width;
+  }
+  return box;
+}
+
+// Zeroes the force field on `box` (x and z wrapped periodically, y clipped).
+template <class T>
+void zero_force_box(lb::Fluid& fluid, const NodeBox& box) {
+  lb::VectorField<T> f = fluid.force_field<T>();
+  const int nx = fluid.nx(), ny = fluid.ny(), nz = fluid.nz();
+  const int span_x = std::min(box.hi[0] - box.lo[0] + 1, nx);
+  const int span_z = std::min(box.hi[2] - box.lo[2] + 1, nz);
+  const int j_lo = std::max(box.lo[1], 0), j_hi = std::min(box.hi[1], ny - 1);
+  for (int kk = 0; kk < span_z; ++kk) {
+    const int k = ((box.lo[2] + kk) % nz + nz) % nz;
+    for (int j = j_lo; j <= j_hi; ++j) {
+      for (int ii = 0; ii < span_x; ++ii) {
+        const int i = ((box.lo[0] + ii) % nx + nx) % nx;
+        const std::size_t node = fluid.node(i, j, k);
+        f.x[node] = T(0);
+        f.y[node] = T(0);
+        f.z[node] = T(0);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+ImmersedCell make_immersed_cell(const mesh::TetMesh& mesh, const units::Units& units,
+                                const double origin_lattice[3]) {
+  ImmersedCell cell;
+  const std::size_t n = 3 * mesh.num_vertices();
+  cell.spacing_m = units.dx_m();
+  cell.newton_to_lattice = units.force_to_lattice(1.0);
+  for (int d = 0; d < 3; ++d) cell.origin_lattice[d] = origin_lattice[d];
+  cell.positions_lattice.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    cell.positions_lattice[i] = origin_lattice[i % 3] + units.length_to_lattice(mesh.positions_m[i]);
+  }
+  cell.forces_lattice.assign(n, 0.0);
+  cell.velocities_lattice.assign(n, 0.0);
+  cell.positions_m.assign(n, 0.0);
+  cell.forces_n.assign(n, 0.0);
+  return cell;
+}
+
+elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, const elastic::ElasticBody& body,
+                                                  int threads) {
+  const std::size_t n = cell.positions_lattice.size();
+  const double dx = cell.spacing_m;
+  for (std::size_t i = 0; i < n; ++i) {
+    // x_SI = (X - origin) dx
+    cell.positions_m[i] = (cell.positions_lattice[i] - cell.origin_lattice[i % 3]) * dx;
+  }
+  std::fill(cell.forces_n.begin(), cell.forces_n.end(), 0.0);
+  const elastic::ElasticEvaluation eval =
+      elastic::add_elastic_forces(body, cell.positions_m.data(), cell.forces_n.data(), threads);
+  // F_lb = F dt^2 / (m dx)
+  for (std::size_t i = 0; i < n; ++i) cell.forces_lattice[i] = cell.forces_n[i] * cell.newton_to_lattice;
+  return eval;
+}
+
+void spread_cell_forces(ImmersedCell& cell, lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
+  const ibm::Grid grid = ibm::grid_of(fluid);
+  const int width = ibm::kernel_width(kernel);
+  if (fluid.params().precision == lb::Precision::kFloat) {
+    zero_force_box<float>(fluid, cell.last_support);
+    cell.last_support = support_of(cell.positions_lattice, width);
+    ibm::spread<float>(kernel, grid, cell.positions_lattice, cell.forces_lattice, fluid.force_field<float>(),
+                       threads);
+  } else {
+    zero_force_box<double>(fluid, cell.last_support);
+    cell.last_support = support_of(cell.positions_lattice, width);
+    ibm::spread<double>(kernel, grid, cell.positions_lattice, cell.forces_lattice,
+                        fluid.force_field<double>(), threads);
+  }
+}
+
+AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
+  const ibm::Grid grid = ibm::grid_of(fluid);
+  if (fluid.params().precision == lb::Precision::kFloat) {
+    ibm::interpolate<float>(kernel, grid, fluid.velocity_field<float>(), cell.positions_lattice,
+                            cell.velocities_lattice, threads);
+  } else {
+    ibm::interpolate<double>(kernel, grid, fluid.velocity_field<double>(), cell.positions_lattice,
+                             cell.velocities_lattice, threads);
+  }
+  AdvectReport report;
+  for (int d = 0; d < 3; ++d) {
+    report.lo[d] = std::numeric_limits<double>::max();
+    report.hi[d] = -std::numeric_limits<double>::max();
+  }
+  double max_speed_sq = 0.0;
+  bool finite = true;
+  const std::size_t nv = cell.positions_lattice.size() / 3;
+  for (std::size_t v = 0; v < nv; ++v) {
+    double speed_sq = 0.0;
+    for (int d = 0; d < 3; ++d) {
+      const double u = cell.velocities_lattice[3 * v + d];
+      speed_sq += u * u;
+      // X += U dt, dt = 1
+      double& x = cell.positions_lattice[3 * v + d];
+      x += u;
+      report.lo[d] = std::min(report.lo[d], x);
+      report.hi[d] = std::max(report.hi[d], x);
+    }
+    finite = finite && std::isfinite(speed_sq);
+    max_speed_sq = std::max(max_speed_sq, speed_sq);
+  }
+  report.max_speed_lattice = finite ? std::sqrt(max_speed_sq) : std::numeric_limits<double>::quiet_NaN();
+  return report;
+}
+
+std::vector<double> box_positions_m(const ImmersedCell& cell) {
+  std::vector<double> out(cell.positions_lattice.size());
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = cell.positions_lattice[i] * cell.spacing_m;
+  return out;
+}
+
+}  // namespace cellflow::scenes

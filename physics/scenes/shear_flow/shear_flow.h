@@ -1,0 +1,232 @@
+// Shear-flow scene (paper section 7.1): one tetrahedral Mooney-Rivlin cell in
+// plane Couette flow, coupled to a D3Q19 lattice-Boltzmann fluid by the
+// immersed-boundary method.
+//
+// Setup. Box Lx x H x Lz (numerics.box_*_radii times the cell radius R),
+// periodic in x and z, walls at y = 0 and y = H moving at -u_wall and +u_wall
+// along x with u_wall = H gammadot / 2 (paper section 7.1). The cell starts as a
+// stress-free sphere at the box centre. The fluid starts in the steady linear
+// Couette profile u_x(y) = gammadot (y - H/2), the analytic steady state of the
+// empty box, so the cell sees the full shear from step 0 (no start-up
+// transient of the fluid to wait for).
+//
+// Every vertex of the tetrahedral mesh (surface and interior) is an immersed-
+// boundary point; the fluid is not subtracted inside the cell, so the cell
+// interior has the fluid's viscosity (viscosity ratio lambda = 1, as in the
+// paper's standard case). One lattice time step:
+//   f = elastic forces at the vertices          (paper eq. 9-10)
+//   spread f onto the lattice (Peskin kernel), Guo forcing
+//   collide and stream                          (u(t) written on the way)
+//   U = u(t) interpolated at the vertices
+//   x += U dt                                   (explicit Euler, lattice units)
+//
+// Stokes-regime acceleration. The time step is dt = nu_lb dx^2 / nu, so a
+// cell in water at gammadot = 4/s needs ~10^6 steps per unit strain. When the
+// particle Reynolds number Re_p = rho gammadot R^2 / eta is below
+// numerics.target_reynolds_number, the simulated fluid density is raised so
+// that Re_p equals that target: at Re_p << 1 the steady deformation does not
+// depend on the fluid density, and the number of steps per unit strain drops
+// to cells_per_radius^2 / (Re_p nu_lb). Set it to 0 to simulate the physical
+// density. The result reports both Reynolds numbers.
+//
+// SI at this interface; lattice units only inside run_shear_flow, converted
+// through physics/units.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "physics/core/status.h"
+#include "physics/ibm/ibm.h"
+#include "physics/mesh/tet_mesh.h"
+#include "physics/scenes/cell_params.h"
+
+namespace cellflow::scenes {
+
+// Default mesh of a flow cell: the resolution study (bench/shear_flow) shows
+// that 1000 vertices (mesh spacing ~ 1.2 lattice spacings at the default
+// 6 cells per radius) resolve D to the accuracy of the lattice; finer meshes
+// cost elastic work without improving D.
+inline constexpr int kFlowDefaultVertexCount = 1000;
+inline CellParams flow_cell_defaults() {
+  CellParams cell;
+  cell.target_vertex_count = kFlowDefaultVertexCount;
+  return cell;
+}
+
+// Numerical options of the flow scene: each trades time for accuracy or
+// guards a stability limit. Field names follow proto ShearFlowNumerics.
+struct ShearFlowNumerics {
+  double cells_per_radius = 6.0;  // lattice nodes per cell radius R / dx, in [2, 64]
+  double box_x_radii = 10.0;      // box length along the flow / R (periodic)
+  double box_y_radii = 15.0;      // wall distance H / R
+  double box_z_radii = 5.0;       // box depth along the vorticity / R (periodic)
+  double relaxation_time = 1.0;   // LB tau in (0.5, 3]; nu_lb = (tau - 1/2) / 3
+  double max_mach = 0.1;          // refuse u_wall / c_s above this, in (0, 0.3]
+  // Raise the simulated fluid density until Re_p = rho gammadot R^2 / eta
+  // reaches this value (only when the physical Re_p is lower); 0 = physical
+  // density. In [0, 1].
+  double target_reynolds_number = 0.1;
+  ibm::Kernel ibm_kernel = ibm::Kernel::kPeskin4;
+  bool single_precision = true;  // float lattice storage (populations as deviations from rest)
+  // Steady state: (max D - min D) / mean D over the last steady_window_strain
+  // strain units (gammadot t) below steady_tolerance. 0 disables the steady
+  // stop (the run goes to max_strain / max_time_s).
+  double steady_tolerance = 2e-3;      // in [0, 1)
+  double steady_window_strain = 2.0;   // > 0, at least 2 samples
+  double max_strain = 40.0;            // stop at gammadot t = max_strain at the latest, > 0
+  double max_time_s = 0.0;             // > 0: also stop at this time; 0: no limit
+  double sample_every_strain = 0.1;    // deformation samples, > 0
+  double snapshot_every_strain = 1.0;  // cell positions (and fluid velocity) snapshots; 0: none
+  bool fluid_snapshots = false;        // call on_fluid_velocity at snapshot times
+  double memory_limit_bytes = 4.0 * 1024 * 1024 * 1024;  // lattice memory; <= 0: no limit
+  // Stability of the explicit elastic update: refuse when the stiffest vertex
+  // mode k_max (largest eigenvalue of the elastic tangent, lattice units)
+  // exceeds this multiple of the Stokes drag of one lattice spacing,
+  // 6 pi eta_lb dx. 0: the calibrated limit of the kernel,
+  // default_stiffness_limit(ibm_kernel). In [0, 100].
+  double max_stiffness_ratio = 0.0;
+  int threads = 0;  // OpenMP threads; 0 = OpenMP default
+};
+
+struct ShearFlowParams {
+  CellParams cell = flow_cell_defaults();
+  double fluid_density_kg_m3 = 1e3;    // rho > 0
+  double fluid_viscosity_pa_s = 1e-3;  // eta > 0
+  // Exactly one of the two drives the flow: the shear rate, or the capillary
+  // number Ca = eta gammadot / mu (paper eq. 17), mu the shear modulus of the
+  // cell material (mu1 + mu2), which then fixes gammadot.
+  double shear_rate_per_s = 0.0;
+  double capillary_number = 0.0;
+  ShearFlowNumerics numerics;
+};
+
+// Calibrated stability limits of k_max / (6 pi eta_lb dx) per kernel: half
+// the smallest ratio at which a run blew up (bench/shear_flow, cells_per_radius
+// 4, Ca down to 0.001): peskin4 blew up at 8.2 (stable at 5.5) -> 2.5;
+// peskin3 at 1.64 (stable at 0.82) -> 0.4; trilinear at 0.16 -> 0.05.
+double default_stiffness_limit(ibm::Kernel kernel);
+
+// Checks every field; INVALID_ARGUMENT lists each violation with
+// field_prefix + field and its allowed range. Does not build the lattice.
+Status validate(const ShearFlowParams& params, std::string_view field_prefix = "shear_flow.");
+
+// The resolved setup: everything derived from the params before time stepping.
+struct ShearFlowSetup {
+  double shear_rate_per_s = 0.0;
+  double capillary_number = 0.0;
+  double shear_modulus_pa = 0.0;           // mu = mu1 + mu2 of the cell material
+  double reynolds_number_physical = 0.0;   // rho gammadot R^2 / eta
+  double reynolds_number_simulated = 0.0;  // with the simulated density
+  double simulated_density_kg_m3 = 0.0;
+  double lattice_spacing_m = 0.0;   // dx
+  double time_step_s = 0.0;         // dt
+  int nx = 0, ny = 0, nz = 0;       // lattice nodes
+  double box_m[3] = {0, 0, 0};      // nx dx, ny dx (= H), nz dx
+  double wall_speed_m_per_s = 0.0;  // u_wall = H gammadot / 2
+  double mach_number = 0.0;         // u_wall / c_s
+  double shear_rate_lattice = 0.0;  // gammadot dt
+  double steps_per_strain = 0.0;    // 1 / (gammadot dt)
+  std::size_t lattice_bytes = 0;
+};
+
+// validate + units + Mach + memory checks, no allocation: what a server
+// calls to refuse a job up front. Errors: kInvalidArgument (a field, the
+// Mach number; the message names the option to change), kResourceExhausted
+// (lattice above numerics.memory_limit_bytes).
+StatusOr<ShearFlowSetup> plan_shear_flow(const ShearFlowParams& params,
+                                         std::string_view field_prefix = "shear_flow.");
+
+struct ShearFlowSample {
+  int index = 0;
+  std::int64_t time_step = 0;
+  double time_s = 0.0;
+  double strain_units = 0.0;            // gammadot t
+  double taylor_deformation = 0.0;      // D = (a3 - a1) / (a3 + a1)   (paper eq. 13)
+  double inclination_deg = 0.0;         // major axis from +x in the x-y plane
+  double net_strain = 0.0;              // (d_max - 2R) / 2R   (paper eq. 18)
+  std::array<double, 3> semi_axes_m{};  // a1 <= a2 <= a3
+  std::array<double, 3> centroid_m{};   // box coordinates, walls at y = 0 and H
+  double volume_m3 = 0.0;
+  double elastic_energy_j = 0.0;
+  // Mean angular velocity of surface material points about the centroid in
+  // the x-y plane, clockwise positive (the sense of the shear vorticity), over
+  // the last steady window (or since the start when shorter). A rigid sphere:
+  // gammadot / 2.
+  double tank_treading_frequency_per_s = 0.0;
+};
+
+// Velocity field of the whole lattice in SI; node (i, j, k) at
+// ((i + 1/2) dx, (j + 1/2) dx, (k + 1/2) dx), element i + nx (j + ny k).
+struct FluidVelocitySnapshot {
+  int index = 0;
+  double time_s = 0.0;
+  int nx = 0, ny = 0, nz = 0;
+  double spacing_m = 0.0;
+  std::span<const double> ux_m_per_s, uy_m_per_s, uz_m_per_s;
+};
+
+struct ShearFlowCallbacks {
+  std::function<void(const ShearFlowSample&)> on_sample;
+  std::function<void(double fraction_done)> on_progress;  // 0..1
+  std::function<bool()> should_stop;                      // true: stop, status kCancelled
+  // The mesh once (reference positions as meshed, centred at the origin) and
+  // the current positions (box coordinates, metres) at each snapshot; after a
+  // numerical failure once more with the last sampled (good) state.
+  std::function<void(const mesh::TetMesh&)> on_mesh;
+  std::function<void(int index, double time_s, std::span<const double> positions_m)> on_positions;
+  // At snapshot times when numerics.fluid_snapshots is set.
+  std::function<void(const FluidVelocitySnapshot&)> on_fluid_velocity;
+};
+
+enum class ShearFlowStop {
+  kSteady,     // D steady within numerics.steady_tolerance over the window
+  kMaxStrain,  // reached numerics.max_strain
+  kMaxTime,    // reached numerics.max_time_s
+  kCancelled,  // should_stop returned true
+  kFailed,     // status says why
+};
+std::string_view stop_name(ShearFlowStop stop);
+
+struct ShearFlowResult {
+  Status status;  // ok for kSteady / kMaxStrain / kMaxTime
+  ShearFlowStop stop = ShearFlowStop::kFailed;
+  ShearFlowSetup setup;
+  std::vector<ShearFlowSample> samples;  // every sample taken, also on failure
+  // Means over the last steady window of samples (whatever stopped the run).
+  double steady_taylor_deformation = 0.0;
+  double steady_inclination_deg = 0.0;
+  double steady_net_strain = 0.0;
+  double tank_treading_frequency_per_s = 0.0;
+  double steady_relative_change = 0.0;        // (max D - min D) / mean D over the window
+  double reference_taylor_deformation = 0.0;  // D of the undeformed mesh (discretisation floor)
+  // Stability of the explicit update: k_max / (6 pi eta_lb dx), lattice units.
+  double stiffness_ratio = 0.0;
+  double mesh_spacing_over_dx = 0.0;  // mean edge length / dx
+  std::int64_t time_steps = 0;
+  double wall_time_s = 0.0;
+  // Wall time split (seconds): elastic forces, spreading + interpolation,
+  // LB collide-stream, observables.
+  double elastic_s = 0.0, coupling_s = 0.0, lattice_s = 0.0, observables_s = 0.0;
+};
+
+// Runs the scene until D is steady, max_strain or max_time_s. Refuses up
+// front (nothing run) with the errors of plan_shear_flow and, for a cell too
+// stiff for the explicit update, kInvalidArgument naming the options to
+// change. A numerical failure (NaN, J <= 0, energy blow-up, runaway vertex
+// speed, the cell reaching a wall) ends it with kNumericalFailure naming the
+// time step and the cause; the samples so far are kept.
+ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCallbacks& callbacks = {});
+
+// Small-Ca limit of Roscoe's theory for an elastic sphere, exact for any
+// hyperelastic law (shared/validation/README.md): D = (5/4) Ca and, for
+// viscosity ratio lambda = 1, inclination pi/4 - (5/4) Ca.
+double small_ca_taylor_deformation(double capillary_number);
+double small_ca_inclination_deg_lambda1(double capillary_number);
+
+}  // namespace cellflow::scenes

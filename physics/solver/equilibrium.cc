@@ -1,0 +1,509 @@
+#include "physics/solver/equilibrium.h"
+
+#include <omp.h>
+
+#include <Eigen/Dense>
+#include <Eigen/IterativeLinearSolvers>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <cstdio>
+#include <cstdlib>
+
+namespace cellflow::solver {
+
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// Armijo sufficient-decrease constant of the line search.
+constexpr double kArmijo = 1e-4;
+// Relative size of Pi's rounding noise: below it a change of Pi says nothing
+// and the line search judges the trial by its residual instead.
+constexpr double kEnergyRoundoff = 1e-11;
+// Smallest Levenberg-Marquardt damping (relative to diag K); below it, none.
+constexpr double kMinDamping = 1e-6;
+
+constexpr std::int64_t kMinParallelDofs = 6000;
+
+int team_size(int threads) {
+  return threads > 0 ? threads : omp_get_max_threads();
+}
+
+std::string format_double(double value) {
+  std::ostringstream out;
+  out.precision(3);
+  out << value;
+  return out.str();
+}
+
+}  // namespace
+
+struct EquilibriumSolver::Preconditioning {
+  Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<int>> incomplete_cholesky;
+  bool factor_valid = false;
+  Eigen::SparseMatrix<double> shifted;  // K + shift diag K when factored with a shift
+  std::vector<double> block_inverse;    // 9 per vertex (block Jacobi)
+};
+
+EquilibriumSolver::EquilibriumSolver(const elastic::ElasticBody& body,
+                                     std::vector<std::int32_t> contact_vertices, EquilibriumOptions options)
+    : body_(&body),
+      contact_vertices_(std::move(contact_vertices)),
+      options_(options),
+      tangent_(body),
+      preconditioning_(std::make_unique<Preconditioning>()) {
+  tangent_.set_threads(options_.threads);
+  // Slots of the diagonal 3x3 blocks in K's values: column 3v+j holds the
+  // rows of v's neighbours (v among them) in sorted order.
+  const Eigen::SparseMatrix<double>& k = tangent_.stiffness();
+  const auto* outer = k.outerIndexPtr();
+  const auto* inner = k.innerIndexPtr();
+  const std::size_t nv = body.num_vertices;
+  diagonal_slot_.assign(3 * nv, -1);
+  std::vector<std::int64_t>& block_slot = vertex_block_slot_;
+  block_slot.assign(9 * nv, -1);
+  for (std::size_t col = 0; col < 3 * nv; ++col) {
+    const std::size_t v = col / 3;
+    for (auto s = outer[col]; s < outer[col + 1]; ++s) {
+      const std::size_t row = static_cast<std::size_t>(inner[s]);
+      if (row / 3 == v) block_slot[9 * v + 3 * (row % 3) + col % 3] = s;
+      if (row == col) diagonal_slot_[col] = s;
+    }
+  }
+  contact_diagonal_slot_.resize(9 * contact_vertices_.size());
+  for (std::size_t c = 0; c < contact_vertices_.size(); ++c) {
+    for (int e = 0; e < 9; ++e) contact_diagonal_slot_[9 * c + e] = block_slot[9 * contact_vertices_[c] + e];
+  }
+  contact_blocks_.assign(9 * contact_vertices_.size(), 0.0);
+  // Vertex-block structure for the matrix-vector product, if K has it.
+  bool blocked = true;
+  block_neighbour_offsets_.assign(nv + 1, 0);
+  for (std::size_t v = 0; v < nv && blocked; ++v) {
+    const auto length = outer[3 * v + 1] - outer[3 * v];
+    blocked = length % 3 == 0 && outer[3 * v + 2] - outer[3 * v + 1] == length &&
+              outer[3 * v + 3] - outer[3 * v + 2] == length;
+    for (auto e = 0; blocked && e < length; e += 3) {
+      const auto row = inner[outer[3 * v] + e];
+      for (int j = 0; j < 3 && blocked; ++j) {
+        for (int i = 0; i < 3 && blocked; ++i)
+          blocked = inner[outer[3 * v + j] + e + i] == row + i && row % 3 == 0;
+      }
+      if (blocked) block_neighbours_.push_back(static_cast<std::int32_t>(row / 3));
+    }
+    block_neighbour_offsets_[v + 1] = static_cast<std::int64_t>(block_neighbours_.size());
+  }
+  if (!blocked) {
+    block_neighbours_.clear();
+    block_neighbour_offsets_.clear();
+  }
+  const Eigen::Index n = static_cast<Eigen::Index>(3 * nv);
+  diagonal_.setZero(n);
+  r_.setZero(n);
+  z_.setZero(n);
+  p_.setZero(n);
+  q_.setZero(n);
+}
+
+EquilibriumSolver::~EquilibriumSolver() = default;
+
+bool EquilibriumSolver::evaluate_forces(const contact::Obstacles& obstacles, const double* y,
+                                        Eigen::VectorXd& forces, double& energy,
+                                        EquilibriumReport& report) const {
+  forces.setZero(static_cast<Eigen::Index>(3 * body_->num_vertices));
+  const elastic::ElasticEvaluation el =
+      elastic::add_elastic_forces(*body_, y, forces.data(), options_.threads);
+  if (el.first_inverted_tet >= 0) {
+    report.first_inverted_tet = el.first_inverted_tet;
+    energy = kInfinity;
+    return false;
+  }
+  const contact::ContactEvaluation ct =
+      contact::add_contact_forces(obstacles, contact_vertices_, y, forces.data());
+  energy = el.energy_j + ct.energy_j;
+  if (!std::isfinite(energy) || !forces.allFinite()) {
+    energy = kInfinity;
+    return false;
+  }
+  report.elastic_energy_j = el.energy_j;
+  report.contact = ct;
+  return true;
+}
+
+double EquilibriumSolver::total_energy(const contact::Obstacles& obstacles, const double* positions_m) const {
+  const elastic::ElasticEvaluation el = elastic::elastic_energy(*body_, positions_m, options_.threads);
+  if (el.first_inverted_tet >= 0) return kInfinity;
+  const double pi = el.energy_j + contact::contact_energy(obstacles, contact_vertices_, positions_m).energy_j;
+  return std::isfinite(pi) ? pi : kInfinity;
+}
+
+double EquilibriumSolver::residual(const contact::Obstacles& obstacles, const double* positions_m,
+                                   std::vector<double>* forces_n) const {
+  Eigen::VectorXd f;
+  double energy;
+  EquilibriumReport scratch;
+  if (!evaluate_forces(obstacles, positions_m, f, energy, scratch)) return kInfinity;
+  // Rigid modes of this configuration, without touching the solver's state.
+  auto* self = const_cast<EquilibriumSolver*>(this);
+  const std::vector<Eigen::VectorXd> saved = rigid_modes_;
+  self->build_rigid_modes(positions_m);
+  project(f);
+  self->rigid_modes_ = saved;
+  if (forces_n) forces_n->assign(f.data(), f.data() + f.size());
+  return f.norm() / options_.force_scale_n;
+}
+
+void EquilibriumSolver::build_rigid_modes(const double* y) {
+  rigid_modes_.clear();
+  const std::size_t nv = body_->num_vertices;
+  const Eigen::Index n = static_cast<Eigen::Index>(3 * nv);
+  if (options_.hold_lateral_translation) {
+    for (int axis = 0; axis < 2; ++axis) {
+      Eigen::VectorXd mode = Eigen::VectorXd::Zero(n);
+      for (std::size_t v = 0; v < nv; ++v) mode[static_cast<Eigen::Index>(3 * v + axis)] = 1.0;
+      rigid_modes_.push_back(mode.normalized());
+    }
+  }
+  // infinitesimal rotations about the axes through the vertex mean c: e_a x (y - c)
+  double centre[3] = {0.0, 0.0, 0.0};
+  for (std::size_t v = 0; v < nv; ++v) {
+    for (int a = 0; a < 3; ++a) centre[a] += y[3 * v + a];
+  }
+  for (double& c : centre) c /= static_cast<double>(nv);
+  auto add_rotation = [&](int axis) {
+    Eigen::VectorXd mode = Eigen::VectorXd::Zero(n);
+    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    for (std::size_t v = 0; v < nv; ++v) {
+      // (e_axis x d)_a1 = -d_a2, (e_axis x d)_a2 = d_a1
+      mode[static_cast<Eigen::Index>(3 * v + a1)] = -(y[3 * v + a2] - centre[a2]);
+      mode[static_cast<Eigen::Index>(3 * v + a2)] = y[3 * v + a1] - centre[a1];
+    }
+    for (const Eigen::VectorXd& q : rigid_modes_) mode -= q * q.dot(mode);  // Gram-Schmidt
+    const double norm = mode.norm();
+    if (norm > 0.0) rigid_modes_.push_back(mode / norm);
+  };
+  if (options_.hold_spin_about_z) add_rotation(2);
+  if (options_.hold_rolling) {
+    add_rotation(0);
+    add_rotation(1);
+  }
+}
+
+double EquilibriumSolver::held_component(const Eigen::VectorXd& v) const {
+  double sum = 0.0;
+  for (const Eigen::VectorXd& q : rigid_modes_) sum += q.dot(v) * q.dot(v);
+  return std::sqrt(sum);
+}
+
+void EquilibriumSolver::project(Eigen::VectorXd& v) const {
+  for (const Eigen::VectorXd& q : rigid_modes_) v -= q * q.dot(v);
+}
+
+void EquilibriumSolver::assemble_tangent(const contact::Obstacles& obstacles, const double* y) {
+  tangent_.assemble(y);
+  double* values = tangent_.stiffness().valuePtr();
+  std::fill(contact_blocks_.begin(), contact_blocks_.end(), 0.0);
+  // The positive semidefinite part of the probe Hessian: the dropped term is
+  // a relative s / (2 Rp) of the curvature and keeps K positive definite.
+  contact::add_contact_hessian_blocks(obstacles, contact_vertices_, y, contact_blocks_.data(),
+                                      /*positive_semidefinite=*/true);
+  for (std::size_t e = 0; e < contact_blocks_.size(); ++e) {
+    if (contact_blocks_[e] != 0.0) values[contact_diagonal_slot_[e]] += contact_blocks_[e];
+  }
+  for (std::size_t i = 0; i < diagonal_slot_.size(); ++i) {
+    diagonal_[static_cast<Eigen::Index>(i)] = values[diagonal_slot_[i]];
+  }
+}
+
+void EquilibriumSolver::matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, double shift) const {
+  // K is symmetric and stored with both triangles, so column i is row i:
+  // out_i = K(:, i) . x. With the 3x3 block layout (columns 3v, 3v+1, 3v+2
+  // hold the same neighbour rows, three consecutive rows per neighbour) one
+  // neighbour index and one load of x_w serve nine products.
+  const Eigen::SparseMatrix<double>& k = tangent_.stiffness();
+  const auto* outer = k.outerIndexPtr();
+  const auto* inner = k.innerIndexPtr();
+  const double* values = k.valuePtr();
+  const std::int64_t n = k.cols();
+  const double* xs = x.data();
+  double* os = out.data();
+  const double* diag = diagonal_.data();
+  const bool blocked = !block_neighbour_offsets_.empty();
+  auto vertices = [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t v = begin; v < end; ++v) {
+      if (!blocked) {
+        for (std::int64_t i = 3 * v; i < 3 * v + 3; ++i) {
+          double sum = shift * diag[i] * xs[i];
+          for (auto s = outer[i]; s < outer[i + 1]; ++s) sum += values[s] * xs[inner[s]];
+          os[i] = sum;
+        }
+        continue;
+      }
+      const double* c0 = values + outer[3 * v];
+      const double* c1 = values + outer[3 * v + 1];
+      const double* c2 = values + outer[3 * v + 2];
+      double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+      const std::int64_t first = block_neighbour_offsets_[v], count = block_neighbour_offsets_[v + 1] - first;
+      const std::int32_t* neighbours = block_neighbours_.data() + first;
+      for (std::int64_t b = 0; b < count; ++b) {
+        const double* xw = xs + 3 * static_cast<std::int64_t>(neighbours[b]);
+        const double x0 = xw[0], x1 = xw[1], x2 = xw[2];
+        s0 += c0[3 * b] * x0 + c0[3 * b + 1] * x1 + c0[3 * b + 2] * x2;
+        s1 += c1[3 * b] * x0 + c1[3 * b + 1] * x1 + c1[3 * b + 2] * x2;
+        s2 += c2[3 * b] * x0 + c2[3 * b + 1] * x1 + c2[3 * b + 2] * x2;
+      }
+      os[3 * v] = s0 + shift * diag[3 * v] * xs[3 * v];
+      os[3 * v + 1] = s1 + shift * diag[3 * v + 1] * xs[3 * v + 1];
+      os[3 * v + 2] = s2 + shift * diag[3 * v + 2] * xs[3 * v + 2];
+    }
+  };
+  const std::int64_t nv = n / 3;
+  // Below ~2000 vertices a fork/join costs more than the product; outside a
+  // parallel region no OpenMP thread is woken at all.
+  const int team = n > kMinParallelDofs ? team_size(options_.threads) : 1;
+  if (team == 1) {
+    vertices(0, nv);
+    return;
+  }
+#pragma omp parallel num_threads(team)
+  {
+    const std::int64_t rank = omp_get_thread_num(), size = omp_get_num_threads();
+    vertices(nv * rank / size, nv * (rank + 1) / size);
+  }
+}
+
+int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance,
+                                    double absolute_tolerance, double shift, Eigen::VectorXd& dx,
+                                    bool& negative_curvature) {
+  Preconditioning& pc = *preconditioning_;
+  const std::size_t nv = body_->num_vertices;
+  auto apply_preconditioner = [&](const Eigen::VectorXd& in, Eigen::VectorXd& out) {
+    if (options_.preconditioner == Preconditioner::kIncompleteCholesky) {
+      out = pc.incomplete_cholesky.solve(in);
+    } else {
+      for (std::size_t v = 0; v < nv; ++v) {
+        const double* b = pc.block_inverse.data() + 9 * v;
+        const double* r = in.data() + 3 * v;
+        double* o = out.data() + 3 * v;
+        for (int a = 0; a < 3; ++a) o[a] = b[3 * a] * r[0] + b[3 * a + 1] * r[1] + b[3 * a + 2] * r[2];
+      }
+    }
+    project(out);
+  };
+
+  negative_curvature = false;
+  dx.setZero(rhs.size());
+  r_ = rhs;
+  project(r_);
+  const double target = std::max(relative_tolerance * r_.norm(), absolute_tolerance);
+  if (r_.norm() <= target) return 0;
+  apply_preconditioner(r_, z_);
+  p_ = z_;
+  double rz = r_.dot(z_);
+  int it = 0;
+  for (; it < options_.max_cg_iterations; ++it) {
+    matvec(p_, q_, shift);
+    project(q_);
+    const double curvature = p_.dot(q_);
+    if (!(curvature > 0.0)) {
+      // Steihaug: stop at the last iterate; with none yet, the preconditioned
+      // residual is a descent direction for the line search to scale.
+      negative_curvature = true;
+      if (it == 0) dx = z_;
+      return it + 1;
+    }
+    const double alpha = rz / curvature;
+    dx += alpha * p_;
+    r_ -= alpha * q_;
+    if (r_.norm() <= target) return it + 1;
+    apply_preconditioner(r_, z_);
+    const double rz_next = r_.dot(z_);
+    p_ = z_ + (rz_next / rz) * p_;
+    rz = rz_next;
+  }
+  return it;
+}
+
+void EquilibriumSolver::build_preconditioner(double shift) {
+  Preconditioning& pc = *preconditioning_;
+  if (options_.preconditioner == Preconditioner::kIncompleteCholesky) {
+    if (shift > 0.0) {
+      // factor K + shift diag K: the same matrix CG sees
+      pc.shifted = tangent_.stiffness();
+      double* values = pc.shifted.valuePtr();
+      for (std::size_t i = 0; i < diagonal_slot_.size(); ++i) {
+        values[diagonal_slot_[i]] += shift * diagonal_[static_cast<Eigen::Index>(i)];
+      }
+      pc.incomplete_cholesky.compute(pc.shifted);
+    } else {
+      pc.incomplete_cholesky.compute(tangent_.stiffness());
+    }
+    pc.factor_valid = pc.incomplete_cholesky.info() == Eigen::Success;
+    return;
+  }
+  const std::size_t nv = body_->num_vertices;
+  pc.block_inverse.resize(9 * nv);
+  const double* values = tangent_.stiffness().valuePtr();
+  for (std::size_t v = 0; v < nv; ++v) {
+    Eigen::Matrix3d block;
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) block(a, b) = values[vertex_block_slot_[9 * v + 3 * a + b]];
+    }
+    block.diagonal() *= (1.0 + shift);
+    Eigen::Matrix3d inverse = block.inverse();
+    if (!inverse.allFinite()) {
+      inverse = Eigen::Matrix3d::Identity() / std::max(block.diagonal().maxCoeff(), 1e-300);
+    }
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) pc.block_inverse[9 * v + 3 * a + b] = inverse(a, b);
+    }
+  }
+  pc.factor_valid = true;
+}
+
+EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
+                                           std::span<double> positions_m) {
+  EquilibriumReport report;
+  const Eigen::Index n = static_cast<Eigen::Index>(3 * body_->num_vertices);
+  Eigen::Map<Eigen::VectorXd> y(positions_m.data(), n);
+  Eigen::VectorXd forces, trial_forces, dx, trial(n);
+  double energy = 0.0;
+  if (!evaluate_forces(obstacles, y.data(), forces, energy, report)) {
+    report.cause = report.first_inverted_tet >= 0 ? FailureCause::kInverted : FailureCause::kNotFinite;
+    report.message = report.first_inverted_tet >= 0
+                         ? "initial state has inverted tetrahedron " +
+                               std::to_string(report.first_inverted_tet) + " (J <= 0)"
+                         : "initial state has a non-finite energy or force";
+    report.residual = kInfinity;
+    return report;
+  }
+  build_rigid_modes(y.data());
+  report.held_mode_residual = held_component(forces) / options_.force_scale_n;
+  project(forces);
+  double force_norm = forces.norm();
+  double previous_force_norm = -1.0;
+  double forcing = options_.max_forcing_term;
+  const double scale = options_.force_scale_n;
+  Preconditioning& pc = *preconditioning_;
+  damping_ = 0.0;  // Newton first; the damping grows only where the model fails
+
+  for (int iteration = 0;; ++iteration) {
+    report.residual = force_norm / scale;
+    report.residual_history.push_back(report.residual);
+    if (report.residual <= options_.residual_tolerance) {
+      report.converged = true;
+      return report;
+    }
+    if (iteration == options_.max_newton_iterations) {
+      report.cause = FailureCause::kNotConverged;
+      report.message = "Newton did not converge in " + std::to_string(iteration) +
+                       " iterations (relative residual " + format_double(report.residual) + ")";
+      return report;
+    }
+    ++report.newton_iterations;
+    assemble_tangent(obstacles, y.data());
+
+    // Eisenstat-Walker choice 2 with its safeguard against a sudden drop.
+    if (previous_force_norm > 0.0) {
+      const double ratio = force_norm / previous_force_norm;
+      double next = 0.9 * ratio * ratio;
+      if (0.9 * forcing * forcing > 0.1) next = std::max(next, 0.9 * forcing * forcing);
+      forcing = std::min(options_.max_forcing_term, next);
+    }
+    // No point in solving the linear system beyond a tenth of the target.
+    const double absolute_tolerance = 0.1 * options_.residual_tolerance * scale;
+
+    bool accepted = false;
+    std::int64_t inverted_in_search = -1;
+    for (int attempt = 0; attempt < 6 && !accepted; ++attempt) {
+      if (!pc.factor_valid) {
+        build_preconditioner(damping_);
+        ++report.preconditioner_builds;
+      }
+      bool negative_curvature = false;
+      const int cg = solve_linear(forces, forcing, absolute_tolerance, damping_, dx, negative_curvature);
+      report.cg_iterations += cg;
+      if (options_.preconditioner == Preconditioner::kBlockJacobi || cg > options_.refactor_cg_iterations ||
+          negative_curvature) {
+        pc.factor_valid = false;  // rebuild at the next solve
+      }
+      // Pi(y + a dx) = Pi(y) - a f.dx + O(a^2): dx must point downhill. The
+      // damped quadratic model predicts the decrease f.dx / 2 of a CG iterate.
+      const double slope = -forces.dot(dx);
+      if (!(slope < 0.0) || !dx.allFinite()) {
+        damping_ = std::max(10.0 * damping_, kMinDamping * 100.0);
+        pc.factor_valid = false;
+        continue;
+      }
+      const double predicted_decrease = -0.5 * slope;
+      double step = 1.0;
+      double ratio = 0.0;
+      for (int ls = 0; ls < options_.max_line_search_steps; ++ls) {
+        trial = y + step * dx;
+        double trial_energy;
+        EquilibriumReport trial_report;
+        if (!evaluate_forces(obstacles, trial.data(), trial_forces, trial_energy, trial_report)) {
+          if (trial_report.first_inverted_tet >= 0) inverted_in_search = trial_report.first_inverted_tet;
+          step *= 0.25;
+          continue;
+        }
+        if (ls == 0) ratio = (energy - trial_energy) / predicted_decrease;
+        const bool decrease = trial_energy <= energy + kArmijo * step * slope;
+        bool roundoff_regime = false;
+        if (!decrease && trial_energy - energy <= kEnergyRoundoff * std::abs(energy)) {
+          // Pi cannot resolve the change: accept if the projected residual drops.
+          Eigen::VectorXd projected = trial_forces;
+          build_rigid_modes(trial.data());
+          project(projected);
+          roundoff_regime = projected.norm() < force_norm;
+          build_rigid_modes(y.data());
+          if (ls == 0 && roundoff_regime) ratio = 1.0;
+        }
+        if (decrease || roundoff_regime) {
+          y = trial;
+          energy = trial_energy;
+          forces = trial_forces;
+          report.elastic_energy_j = trial_report.elastic_energy_j;
+          report.contact = trial_report.contact;
+          accepted = true;
+          if (std::getenv("CF_DEBUG")) std::fprintf(stderr, "  it %d res %.3e step %.3g cg %d eta %.2g negc %d damping %.1e ratio %.3f\n", iteration, force_norm / scale, step, cg, forcing, (int)negative_curvature, damping_, ratio);
+          break;
+        }
+        // minimiser of the quadratic through Pi(0), Pi'(0) and Pi(step), kept in [step/10, step/2]
+        const double quadratic = -slope * step * step / (2.0 * (trial_energy - energy - slope * step));
+        step = std::clamp(quadratic, 0.1 * step, 0.5 * step);
+      }
+      // Levenberg-Marquardt update of the damping from the model's quality:
+      // the rolling of a flattened cell is nearly free in the tangent (only
+      // the vertices already inside the contact range resist it) but not in
+      // Pi, and the damping keeps Newton from taking it at full length.
+      if (accepted && step == 1.0 && ratio > 0.5) {
+        damping_ = damping_ * 0.25 < kMinDamping ? 0.0 : damping_ * 0.25;
+      } else {
+        damping_ = std::max(damping_ * 8.0, kMinDamping);
+        if (!accepted) pc.factor_valid = false;
+      }
+    }
+    if (!accepted) {
+      report.residual = force_norm / scale;
+      if (inverted_in_search >= 0) {
+        report.cause = FailureCause::kInverted;
+        report.first_inverted_tet = inverted_in_search;
+        report.message = "no admissible Newton step: every shorter trial still inverts tetrahedron " +
+                         std::to_string(inverted_in_search) + " (J <= 0) or raises the energy";
+      } else {
+        report.cause = FailureCause::kLineSearch;
+        report.message = "line search found no decrease of the energy (relative residual " +
+                         format_double(report.residual) + ")";
+      }
+      return report;
+    }
+    build_rigid_modes(y.data());
+    report.held_mode_residual = held_component(forces) / options_.force_scale_n;
+    project(forces);
+    previous_force_norm = force_norm;
+    force_norm = forces.norm();
+  }
+}
+
+}  // namespace cellflow::solver

@@ -1,0 +1,162 @@
+// Static equilibrium of one load step: the deformed positions y that minimise
+//   Pi(y) = E_elastic(y) + E_contact(y)
+// with the rigid obstacles (plates, probe) prescribed.
+//
+// Newton's method with the analytic tangent (elastic TangentAssembler plus the
+// contact Hessian blocks), solved inexactly by preconditioned conjugate
+// gradients (Eisenstat-Walker forcing terms), globalised by a backtracking
+// line search on Pi that rejects any trial with an inverted tetrahedron
+// (J <= 0) or a non-finite energy. Negative curvature met inside CG truncates
+// the solve (Steihaug); a direction the line search cannot use is retried
+// with a Levenberg shift K + lambda diag(K).
+//
+// Rigid modes. Frictionless plates fix neither the translation in x and y nor
+// the rotation about z: Pi is invariant under them and K is singular along
+// them. Those three modes are projected out of every Newton correction
+// (projected PCG), so the vertex mean stays at its x-y position and the cell
+// does not spin about z. Projection rather than a small regularisation: it is
+// exact (no bias in the solution, no tuning constant, no near-singular matrix
+// for CG) and costs a few dot products per CG iteration.
+// The rotations about x and y (rolling between the plates) are held the same
+// way by default: for a sphere rolling is neutral, and in the tangent it is
+// resisted only by the vertices already inside the contact range, so Newton
+// proposed rotations of 0.1 rad and more that the line search then cut back
+// (25-35 Newton iterations per load step instead of 4-6). Holding them is
+// what the experiment does (the FluidFM aperture holds the cell); the net
+// torque it leaves is reported as held_mode_residual.
+// For a probe on a sphere the lateral translation is not neutral but unstable
+// (frictionless contact cannot hold a sphere under a sphere); holding it
+// models a cell that sits in place on the substrate.
+//
+// Convergence: the out-of-balance force vector f = -grad Pi (3 per vertex,
+// newtons) with the held rigid modes projected out, measured as
+//   residual = ||f||_2 / (E R^2)
+// where E R^2 (`force_scale_n`) is the force scale of the cell (the Hertz
+// force at deformation eps is (4/3) E* R^2 eps^1.5). The Euclidean norm over
+// all vertices bounds every vertex's imbalance and the error of the reaction
+// on each obstacle.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "physics/contact/rigid_contact.h"
+#include "physics/core/status.h"
+#include "physics/elastic/elastic_body.h"
+
+namespace cellflow::solver {
+
+enum class Preconditioner {
+  kBlockJacobi,         // inverse 3x3 diagonal blocks of K, rebuilt every Newton iteration
+  kIncompleteCholesky,  // Eigen IncompleteCholesky (AMD ordering), refreshed when CG slows down
+};
+
+struct EquilibriumOptions {
+  double residual_tolerance = 1e-6;  // ||f||_2 / force_scale_n at convergence
+  double force_scale_n = 1.0;        // E R^2
+  int max_newton_iterations = 40;
+  int max_cg_iterations = 2000;
+  // Inexact Newton: CG stops at ||r|| <= eta ||f||, eta from Eisenstat-Walker
+  // choice 2, eta_k = 0.9 (||f_k|| / ||f_{k-1}||)^2, capped by this.
+  double max_forcing_term = 0.1;
+  int max_line_search_steps = 30;
+  // Block Jacobi: 2.5 s against 4.5 s with incomplete Cholesky for the first
+  // half of the 3000-vertex curve (one thread): IC halves the CG iterations
+  // but its triangular solves and factorisations cost more than that.
+  Preconditioner preconditioner = Preconditioner::kBlockJacobi;
+  // The incomplete Cholesky factor is kept across Newton iterations and load
+  // steps until a CG solve needs more than this many iterations.
+  int refactor_cg_iterations = 60;
+  bool hold_lateral_translation = true;  // project out x and y translation
+  bool hold_spin_about_z = true;         // project out the rotation about z
+  bool hold_rolling = true;              // project out the rotations about x and y
+  int threads = 0;                       // OpenMP threads; 0 = OpenMP default
+};
+
+enum class FailureCause { kNone, kNotConverged, kInverted, kNotFinite, kLineSearch };
+
+struct EquilibriumReport {
+  bool converged = false;
+  FailureCause cause = FailureCause::kNone;
+  std::string message;  // why it failed, empty when converged
+  int newton_iterations = 0;
+  int cg_iterations = 0;
+  int preconditioner_builds = 0;
+  double residual = 0.0;                 // relative, at the returned positions
+  std::vector<double> residual_history;  // relative residual before each Newton iteration and at the end
+  // Norm of the out-of-balance force along the held modes (net lateral force
+  // and net torques of the contact forces, which the elastic forces cannot
+  // balance), / force_scale_n. Zero by symmetry for a perfect sphere; it
+  // measures what holding the modes changes.
+  double held_mode_residual = 0.0;
+  double elastic_energy_j = 0.0;
+  contact::ContactEvaluation contact;  // at the returned positions
+  std::int64_t first_inverted_tet = -1;
+};
+
+// Owns the tangent assembler, the preconditioner and the work arrays of one
+// body; reused across load steps. `body` must outlive the solver.
+class EquilibriumSolver {
+ public:
+  EquilibriumSolver(const elastic::ElasticBody& body, std::vector<std::int32_t> contact_vertices,
+                    EquilibriumOptions options);
+  ~EquilibriumSolver();
+  EquilibriumSolver(const EquilibriumSolver&) = delete;
+  EquilibriumSolver& operator=(const EquilibriumSolver&) = delete;
+
+  // Newton from the initial guess in positions_m (3 per vertex); on return it
+  // holds the last accepted iterate (the equilibrium when converged).
+  EquilibriumReport solve(const contact::Obstacles& obstacles, std::span<double> positions_m);
+
+  // Pi at y, +infinity if a tetrahedron is inverted or the value is not finite.
+  double total_energy(const contact::Obstacles& obstacles, const double* positions_m) const;
+
+  // Out-of-balance forces -grad Pi at y (3 per vertex) and the relative
+  // residual with the held rigid modes projected out.
+  double residual(const contact::Obstacles& obstacles, const double* positions_m,
+                  std::vector<double>* forces_n = nullptr) const;
+
+  const EquilibriumOptions& options() const { return options_; }
+  std::span<const std::int32_t> contact_vertices() const { return contact_vertices_; }
+  const elastic::ElasticBody& body() const { return *body_; }
+
+ private:
+  struct Preconditioning;
+
+  // Forces (elastic + contact) and energy at y; returns false on inversion/NaN.
+  bool evaluate_forces(const contact::Obstacles& obstacles, const double* y, Eigen::VectorXd& forces,
+                       double& energy, EquilibriumReport& report) const;
+  void build_rigid_modes(const double* y);
+  void project(Eigen::VectorXd& v) const;
+  double held_component(const Eigen::VectorXd& v) const;
+  void assemble_tangent(const contact::Obstacles& obstacles, const double* y);
+  void matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, double shift) const;
+  void build_preconditioner(double shift);
+  // Projected PCG for (K + shift diag K) dx = rhs; returns CG iterations.
+  int solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance, double absolute_tolerance,
+                   double shift, Eigen::VectorXd& dx, bool& negative_curvature);
+
+  const elastic::ElasticBody* body_;
+  std::vector<std::int32_t> contact_vertices_;
+  EquilibriumOptions options_;
+  elastic::TangentAssembler tangent_;
+  std::vector<std::int64_t> contact_diagonal_slot_;  // 9 per contact vertex, into K's values
+  std::vector<std::int64_t> diagonal_slot_;          // 3 per vertex, into K's values
+  std::vector<std::int64_t> vertex_block_slot_;      // 9 per vertex: its diagonal 3x3 block, row-major
+  std::vector<double> contact_blocks_;
+  std::vector<std::int32_t> block_neighbours_;         // neighbour vertex of each 3x3 block of a block column
+  std::vector<std::int64_t> block_neighbour_offsets_;  // per vertex; empty if K lacks the block layout
+  Eigen::VectorXd diagonal_;                           // diag K (Levenberg shift)
+  std::vector<Eigen::VectorXd> rigid_modes_;           // orthonormal
+  std::unique_ptr<Preconditioning> preconditioning_;
+  double damping_ = 0.0;  // Levenberg-Marquardt lambda of the current solve
+  // CG work vectors
+  Eigen::VectorXd r_, z_, p_, q_;
+};
+
+}  // namespace cellflow::solver

@@ -1,0 +1,64 @@
+// Quasi-static continuation along a load parameter (plate or probe travel):
+// each load step is solved to equilibrium by EquilibriumSolver from a
+// predicted state; a step that does not converge is halved, recursively, up
+// to a given number of times.
+//
+// Predictor: the better (lower Pi under the new obstacles) of
+//   - the previous displacement increment extrapolated linearly to the new
+//     load, y + (y - y_prev) (t_new - t) / (t - t_prev), and
+//   - the current state,
+// each with the vertices that the moved obstacles overlap pushed back to the
+// obstacles' zero-force surfaces. The extrapolation makes the predictor
+// first-order accurate in the step, which typically leaves 2-3 Newton
+// iterations per load point.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "physics/contact/rigid_contact.h"
+#include "physics/core/status.h"
+#include "physics/solver/equilibrium.h"
+
+namespace cellflow::solver {
+
+// The obstacles at load parameter t (metres of travel).
+using ObstaclesAtLoad = std::function<contact::Obstacles(double load_m)>;
+
+struct LoadStepReport {
+  bool converged = false;
+  std::string message;  // the cause when not converged (no step index: the caller adds it)
+  FailureCause cause = FailureCause::kNone;
+  int newton_iterations = 0;  // all sub-steps and failed attempts
+  int cg_iterations = 0;
+  int step_splits = 0;     // halvings used
+  EquilibriumReport last;  // of the final sub-step
+};
+
+class LoadPath {
+ public:
+  // `solver` must outlive the path; `positions_m` is the equilibrium at `load_m`.
+  LoadPath(EquilibriumSolver& solver, ObstaclesAtLoad obstacles, std::vector<double> positions_m,
+           double load_m);
+
+  // Advances the equilibrium to `target_load_m`. On failure the state stays at
+  // the last converged sub-step.
+  LoadStepReport advance_to(double target_load_m, int max_step_splits);
+
+  const std::vector<double>& positions_m() const { return positions_; }
+  double load_m() const { return load_; }
+
+ private:
+  bool try_step(double target, int depth, int max_depth, LoadStepReport& report);
+  void predict(double target, const contact::Obstacles& obstacles, std::vector<double>& guess) const;
+  void push_out_of_obstacles(const contact::Obstacles& obstacles, std::vector<double>& y) const;
+
+  EquilibriumSolver* solver_;
+  ObstaclesAtLoad obstacles_;
+  std::vector<double> positions_, previous_positions_;
+  double load_ = 0.0, previous_load_ = 0.0;
+  bool has_previous_ = false;
+};
+
+}  // namespace cellflow::solver

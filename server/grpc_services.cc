@@ -1,0 +1,127 @@
+#include "server/grpc_services.h"
+
+namespace cellflow::server {
+
+grpc::Status to_grpc(const Status& status, bool draining) {
+  if (status.ok()) return grpc::Status::OK;
+  if (draining) return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down: " + status.message()};
+  switch (status.code()) {
+    case StatusCode::kOk:
+      return grpc::Status::OK;
+    case StatusCode::kInvalidArgument:
+      return {grpc::StatusCode::INVALID_ARGUMENT, status.message()};
+    case StatusCode::kNotFound:
+      return {grpc::StatusCode::NOT_FOUND, status.message()};
+    case StatusCode::kFailedPrecondition:
+      return {grpc::StatusCode::FAILED_PRECONDITION, status.message()};
+    case StatusCode::kResourceExhausted:
+      return {grpc::StatusCode::RESOURCE_EXHAUSTED, status.message()};
+    case StatusCode::kCancelled:
+      return {grpc::StatusCode::CANCELLED, status.message()};
+    case StatusCode::kNumericalFailure:
+    case StatusCode::kInternal:
+      break;
+  }
+  return {grpc::StatusCode::INTERNAL, status.to_string()};
+}
+
+namespace {
+
+template <class T, class Out>
+grpc::Status reply(StatusOr<T> result, Out* out, bool draining = false) {
+  if (!result.ok()) return to_grpc(result.status(), draining);
+  *out = std::move(*result);
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::Status CellflowServiceImpl::SubmitJob(grpc::ServerContext*, const v1::SubmitJobRequest* request,
+                                            v1::SubmitJobResponse* response) {
+  if (jobs_.draining()) return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down"};
+  return reply(jobs_.submit(*request), response);
+}
+
+grpc::Status CellflowServiceImpl::GetJob(grpc::ServerContext*, const v1::GetJobRequest* request,
+                                         v1::Job* response) {
+  return reply(jobs_.get(request->job_id()), response);
+}
+
+grpc::Status CellflowServiceImpl::ListJobs(grpc::ServerContext*, const v1::ListJobsRequest* request,
+                                           v1::ListJobsResponse* response) {
+  return reply(jobs_.list(*request), response);
+}
+
+grpc::Status CellflowServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* request,
+                                            v1::Job* response) {
+  return reply(jobs_.cancel(request->job_id()), response);
+}
+
+grpc::Status CellflowServiceImpl::WatchJob(grpc::ServerContext* context, const v1::WatchJobRequest* request,
+                                           grpc::ServerWriter<v1::JobEvent>* writer) {
+  Status status = jobs_.watch(
+      *request, [&](const v1::JobEvent& event) { return writer->Write(event); },
+      [&] { return context->IsCancelled(); });
+  // A watch cut short by shutdown: UNAVAILABLE, so the client resumes.
+  return to_grpc(status, !status.ok() && status.code() == StatusCode::kCancelled && jobs_.draining());
+}
+
+grpc::Status CellflowServiceImpl::DownloadResult(grpc::ServerContext* context,
+                                                 const v1::DownloadResultRequest* request,
+                                                 grpc::ServerWriter<v1::ResultChunk>* writer) {
+  return to_grpc(jobs_.download(request->job_id(), [&](const v1::ResultChunk& chunk) {
+    return !context->IsCancelled() && writer->Write(chunk);
+  }));
+}
+
+grpc::Status WorkerServiceImpl::LeaseJob(grpc::ServerContext* context, const v1::LeaseJobRequest* request,
+                                         v1::LeaseJobResponse* response) {
+  return reply(jobs_.lease(*request, [&] { return context->IsCancelled(); }), response);
+}
+
+grpc::Status WorkerServiceImpl::ReportJob(grpc::ServerContext* context,
+                                          grpc::ServerReaderWriter<v1::ReportAck, v1::WorkerReport>* stream) {
+  v1::WorkerReport report;
+  while (stream->Read(&report)) {
+    auto ack = jobs_.report(report);
+    if (!ack.ok()) return to_grpc(ack.status());
+    if (!stream->Write(*ack)) return {grpc::StatusCode::CANCELLED, "the worker went away"};
+    if (!ack->lease_valid()) break;  // the attempt is over; the worker stops
+  }
+  (void)context;
+  return grpc::Status::OK;
+}
+
+grpc::Status WorkerServiceImpl::UploadResult(grpc::ServerContext* context,
+                                             grpc::ServerReader<v1::UploadChunk>* reader,
+                                             v1::UploadResultResponse* response) {
+  v1::UploadChunk chunk;
+  if (!reader->Read(&chunk)) return {grpc::StatusCode::INVALID_ARGUMENT, "upload without chunks"};
+  auto upload = jobs_.begin_upload(chunk.lease());
+  if (!upload.ok()) return to_grpc(upload.status());
+  do {
+    if (context->IsCancelled()) return {grpc::StatusCode::CANCELLED, "the worker went away"};
+    if (Status s = (*upload)->write(chunk.offset(), chunk.data()); !s.ok()) return to_grpc(s);
+  } while (reader->Read(&chunk));
+  auto size = (*upload)->complete();
+  if (!size.ok()) return to_grpc(size.status());
+  response->set_size_bytes(*size);
+  return grpc::Status::OK;
+}
+
+grpc::Status WorkerServiceImpl::FinishJob(grpc::ServerContext*, const v1::FinishJobRequest* request,
+                                          v1::FinishJobResponse* response) {
+  return reply(jobs_.finish(*request), response);
+}
+
+grpc::Status WorkerServiceImpl::FailJob(grpc::ServerContext*, const v1::FailJobRequest* request,
+                                        v1::FinishJobResponse* response) {
+  return reply(jobs_.fail(*request), response);
+}
+
+grpc::Status WorkerServiceImpl::ReleaseJob(grpc::ServerContext*, const v1::ReleaseJobRequest* request,
+                                           v1::FinishJobResponse* response) {
+  return reply(jobs_.release(*request), response);
+}
+
+}  // namespace cellflow::server

@@ -1,0 +1,60 @@
+// Thin gRPC handlers over JobService: translate messages and status codes,
+// nothing else. Synchronous API; streaming handlers check for client
+// cancellation.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include "cellflow/v1/service.grpc.pb.h"
+#include "cellflow/v1/worker.grpc.pb.h"
+#include "server/job_service.h"
+
+namespace cellflow::server {
+
+// cellflow::Status -> grpc::Status. While the service drains, refusals and
+// interrupted streams become UNAVAILABLE so that clients retry elsewhere/later.
+grpc::Status to_grpc(const Status& status, bool draining = false);
+
+class CellflowServiceImpl final : public v1::CellflowService::Service {
+ public:
+  explicit CellflowServiceImpl(JobService& jobs) : jobs_(jobs) {}
+
+  grpc::Status SubmitJob(grpc::ServerContext* context, const v1::SubmitJobRequest* request,
+                         v1::SubmitJobResponse* response) override;
+  grpc::Status GetJob(grpc::ServerContext* context, const v1::GetJobRequest* request,
+                      v1::Job* response) override;
+  grpc::Status ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest* request,
+                        v1::ListJobsResponse* response) override;
+  grpc::Status CancelJob(grpc::ServerContext* context, const v1::CancelJobRequest* request,
+                         v1::Job* response) override;
+  grpc::Status WatchJob(grpc::ServerContext* context, const v1::WatchJobRequest* request,
+                        grpc::ServerWriter<v1::JobEvent>* writer) override;
+  grpc::Status DownloadResult(grpc::ServerContext* context, const v1::DownloadResultRequest* request,
+                              grpc::ServerWriter<v1::ResultChunk>* writer) override;
+
+ private:
+  JobService& jobs_;
+};
+
+class WorkerServiceImpl final : public v1::WorkerService::Service {
+ public:
+  explicit WorkerServiceImpl(JobService& jobs) : jobs_(jobs) {}
+
+  grpc::Status LeaseJob(grpc::ServerContext* context, const v1::LeaseJobRequest* request,
+                        v1::LeaseJobResponse* response) override;
+  grpc::Status ReportJob(grpc::ServerContext* context,
+                         grpc::ServerReaderWriter<v1::ReportAck, v1::WorkerReport>* stream) override;
+  grpc::Status UploadResult(grpc::ServerContext* context, grpc::ServerReader<v1::UploadChunk>* reader,
+                            v1::UploadResultResponse* response) override;
+  grpc::Status FinishJob(grpc::ServerContext* context, const v1::FinishJobRequest* request,
+                         v1::FinishJobResponse* response) override;
+  grpc::Status FailJob(grpc::ServerContext* context, const v1::FailJobRequest* request,
+                       v1::FinishJobResponse* response) override;
+  grpc::Status ReleaseJob(grpc::ServerContext* context, const v1::ReleaseJobRequest* request,
+                          v1::FinishJobResponse* response) override;
+
+ private:
+  JobService& jobs_;
+};
+
+}  // namespace cellflow::server

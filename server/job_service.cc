@@ -1,0 +1,479 @@
+#include "server/job_service.h"
+
+#include <fcntl.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <system_error>
+#include <vector>
+
+#include "server/memory_estimate.h"
+#include "spec/job_spec.h"
+
+namespace cellflow::server {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::int64_t system_now_ms() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+StatusOr<std::int64_t> parse_id(const std::string& job_id, const char* field) {
+  auto id = parse_job_name(job_id);
+  if (!id) return invalid_argument(std::string(field) + ": \"" + job_id + "\" is not a job id (job-<n>)");
+  return *id;
+}
+
+const char kBase64Url[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
+
+std::string base64url(const std::string& in) {
+  std::string out;
+  int bits = 0;
+  unsigned value = 0;
+  for (unsigned char c : in) {
+    value = (value << 8) | c;
+    bits += 8;
+    while (bits >= 6) {
+      bits -= 6;
+      out += kBase64Url[(value >> bits) & 63];
+    }
+  }
+  if (bits > 0) out += kBase64Url[(value << (6 - bits)) & 63];
+  return out;
+}
+
+std::optional<std::string> unbase64url(const std::string& in) {
+  std::string out;
+  int bits = 0;
+  unsigned value = 0;
+  for (char c : in) {
+    const char* p = std::strchr(kBase64Url, c);
+    if (p == nullptr || c == '\0') return std::nullopt;
+    value = (value << 6) | static_cast<unsigned>(p - kBase64Url);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((value >> bits) & 0xff);
+    }
+  }
+  return out;
+}
+
+Status sync_directory(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (fd < 0) return {StatusCode::kInternal, "cannot open directory " + dir.string()};
+  ::fsync(fd);
+  ::close(fd);
+  return {};
+}
+
+}  // namespace
+
+std::string encode_page_token(std::int64_t after_id, v1::Job::State state) {
+  return base64url("v1:" + std::to_string(after_id) + ":" + std::to_string(static_cast<int>(state)));
+}
+
+StatusOr<std::int64_t> decode_page_token(const std::string& token, v1::Job::State state) {
+  auto text = unbase64url(token);
+  long long after = 0;
+  int token_state = 0;
+  if (!text || std::sscanf(text->c_str(), "v1:%lld:%d", &after, &token_state) != 2 || after < 0) {
+    return invalid_argument("page_token: not a token this server issued");
+  }
+  if (token_state != static_cast<int>(state)) {
+    return invalid_argument("page_token: belongs to a listing with another state filter");
+  }
+  return static_cast<std::int64_t>(after);
+}
+
+ResultUpload::~ResultUpload() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!completed_) {
+    std::error_code error;
+    fs::remove(path_, error);
+  }
+}
+
+Status ResultUpload::write(std::int64_t offset, const std::string& data) {
+  if (offset != size_) {
+    return invalid_argument("offset: expected " + std::to_string(size_) + ", got " + std::to_string(offset));
+  }
+  std::size_t written = 0;
+  while (written < data.size()) {
+    const ssize_t n = ::pwrite(fd_, data.data() + written, data.size() - written, size_ + written);
+    if (n < 0) return {StatusCode::kInternal, "cannot write " + path_.string()};
+    written += static_cast<std::size_t>(n);
+  }
+  size_ += static_cast<std::int64_t>(data.size());
+  return {};
+}
+
+StatusOr<std::int64_t> ResultUpload::complete() {
+  if (::fsync(fd_) != 0 || ::close(fd_) != 0) {
+    fd_ = -1;
+    return Status(StatusCode::kInternal, "cannot sync " + path_.string());
+  }
+  fd_ = -1;
+  completed_ = true;
+  return size_;
+}
+
+JobService::JobService(Store& store, Notifier& notifier, JobServiceOptions options)
+    : store_(store), notifier_(notifier), options_(std::move(options)) {
+  if (!options_.now_ms) options_.now_ms = system_now_ms;
+  std::error_code error;
+  fs::create_directories(options_.data_dir / "results", error);
+}
+
+fs::path JobService::result_path(std::int64_t job_id) const {
+  return options_.data_dir / "results" / (job_name(job_id) + ".h5");
+}
+
+fs::path JobService::upload_path(const v1::Lease& lease) const {
+  auto id = parse_job_name(lease.job_id());
+  // The token keeps two attempts (or a stale worker) from sharing a file.
+  return options_.data_dir / "results" /
+         (job_name(id.value_or(0)) + ".attempt-" + std::to_string(lease.attempt()) + "." +
+          lease.lease_token().substr(0, 32) + ".h5.part");
+}
+
+void JobService::published(const v1::Job& job) {
+  if (auto id = parse_job_name(job.id())) notifier_.publish(*id, job.last_sequence());
+}
+
+StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& request) {
+  if (draining()) return Status(StatusCode::kFailedPrecondition, "the server is shutting down");
+  if (static_cast<int>(request.request_id().size()) > options_.max_request_id_length) {
+    return invalid_argument("request_id: at most " + std::to_string(options_.max_request_id_length) +
+                            " characters");
+  }
+  if (Status valid = spec::validate(request.spec()); !valid.ok()) return valid;
+  const std::int64_t memory = estimate_job_memory_bytes(request.spec());
+  if (options_.memory_limit_bytes > 0 && memory > options_.memory_limit_bytes) {
+    return Status(
+        StatusCode::kResourceExhausted,
+        "the job needs an estimated " + std::to_string(memory >> 20) + " MiB, over this server's limit of " +
+            std::to_string(options_.memory_limit_bytes >> 20) +
+            " MiB (--memory-limit-bytes); lower cell.target_vertex_count or the lattice resolution");
+  }
+  auto submitted = store_.submit(request.spec(), request.request_id(), memory, now());
+  if (!submitted.ok()) return submitted.status();
+  if (!submitted->existed) {
+    published(submitted->job);
+    notifier_.queue_changed();
+    spdlog::info("{} queued{}{}", submitted->job.id(),
+                 request.spec().name().empty() ? "" : " \"" + request.spec().name() + "\"",
+                 request.request_id().empty() ? "" : " (request " + request.request_id() + ")");
+  }
+  v1::SubmitJobResponse response;
+  *response.mutable_job() = std::move(submitted->job);
+  response.set_already_existed(submitted->existed);
+  return response;
+}
+
+StatusOr<v1::Job> JobService::get(const std::string& job_id) {
+  auto id = parse_id(job_id, "job_id");
+  if (!id.ok()) return id.status();
+  return store_.get(*id);
+}
+
+StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& request) {
+  if (request.page_size() < 0) return invalid_argument("page_size: must be >= 0");
+  if (!v1::Job::State_IsValid(request.state())) return invalid_argument("state: unknown job state");
+  const int page_size = request.page_size() == 0 ? options_.default_page_size
+                                                 : std::min(request.page_size(), options_.max_page_size);
+  std::int64_t after = 0;
+  if (!request.page_token().empty()) {
+    auto decoded = decode_page_token(request.page_token(), request.state());
+    if (!decoded.ok()) return decoded.status();
+    after = *decoded;
+  }
+  auto jobs = store_.list(after, page_size + 1, request.state());
+  if (!jobs.ok()) return jobs.status();
+  v1::ListJobsResponse response;
+  const bool more = static_cast<int>(jobs->size()) > page_size;
+  if (more) jobs->pop_back();
+  for (auto& job : *jobs) *response.add_jobs() = std::move(job);
+  if (more) {
+    const auto last = parse_job_name(response.jobs(response.jobs_size() - 1).id());
+    response.set_next_page_token(encode_page_token(last.value_or(0), request.state()));
+  }
+  return response;
+}
+
+StatusOr<v1::Job> JobService::cancel(const std::string& job_id) {
+  auto id = parse_id(job_id, "job_id");
+  if (!id.ok()) return id.status();
+  auto job = store_.cancel(*id, "cancelled by the client", now());
+  if (job.ok()) {
+    published(*job);
+    spdlog::info("{} cancelled", job->id());
+  }
+  return job;
+}
+
+Status JobService::watch(const v1::WatchJobRequest& request,
+                         const std::function<bool(const v1::JobEvent&)>& send,
+                         const std::function<bool()>& client_gone) {
+  auto id = parse_id(request.job_id(), "job_id");
+  if (!id.ok()) return id.status();
+  if (request.after_sequence() < 0) return invalid_argument("after_sequence: must be >= 0");
+  // Subscribe before the first read: a commit after the read wakes the wait.
+  auto subscription = notifier_.subscribe(*id);
+  if (auto job = store_.get(*id); !job.ok()) return job.status();
+  constexpr int kBatch = 256;
+  std::int64_t after = request.after_sequence();
+  while (true) {
+    if (client_gone()) return {StatusCode::kCancelled, "the watcher went away"};
+    auto events = store_.events_after(*id, after, kBatch);
+    if (!events.ok()) return events.status();
+    for (const v1::JobEvent& event : *events) {
+      if (!send(event)) return {StatusCode::kCancelled, "the watcher went away"};
+      after = event.sequence();
+      if (event.has_state_change() && is_terminal(event.state_change().state())) return {};
+    }
+    if (static_cast<int>(events->size()) == kBatch) continue;
+    if (events->empty()) {
+      // Resumed after the terminal event: nothing will follow.
+      auto job = store_.get(*id);
+      if (!job.ok()) return job.status();
+      if (is_terminal(job->state()) && after >= job->last_sequence()) return {};
+      if (notifier_.shutting_down()) return {StatusCode::kCancelled, "the server is shutting down"};
+    }
+    // Woken by the next commit; the timeout only bounds how long a vanished
+    // client keeps this thread.
+    subscription->wait(after, std::chrono::milliseconds(500));
+  }
+}
+
+Status JobService::download(const std::string& job_id,
+                            const std::function<bool(const v1::ResultChunk&)>& send) {
+  auto id = parse_id(job_id, "job_id");
+  if (!id.ok()) return id.status();
+  auto job = store_.get(*id);
+  if (!job.ok()) return job.status();
+  const fs::path path = result_path(*id);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return {StatusCode::kNotFound,
+            job->id() + " has no result file (state " + v1::Job::State_Name(job->state()) + ")"};
+  }
+  std::error_code error;
+  const auto total = static_cast<std::int64_t>(fs::file_size(path, error));
+  std::vector<char> buffer(options_.download_chunk_bytes);
+  std::int64_t offset = 0;
+  bool first = true;
+  do {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    const std::streamsize n = in.gcount();
+    v1::ResultChunk chunk;
+    chunk.set_offset(offset);
+    chunk.set_data(buffer.data(), static_cast<std::size_t>(n));
+    chunk.set_total_size_bytes(total);
+    if (first) chunk.set_file_name(job->id() + ".h5");
+    first = false;
+    if (!send(chunk)) return {StatusCode::kCancelled, "the client went away"};
+    offset += n;
+  } while (in && offset < total);
+  return {};
+}
+
+StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& request,
+                                                 const std::function<bool()>& client_gone) {
+  if (request.worker_id().empty()) return invalid_argument("worker_id: must not be empty");
+  const double wait_s = std::clamp(request.wait_s(), 0.0, 30.0);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<int>(wait_s * 1000));
+  v1::LeaseJobResponse response;
+  response.set_lease_ttl_s(options_.lease_ttl_s);
+  response.set_heartbeat_interval_s(options_.heartbeat_interval_s);
+  while (!notifier_.shutting_down()) {
+    const std::uint64_t generation = notifier_.queue_generation();
+    // While draining nothing is handed out; the poll still waits its time so
+    // that workers do not spin against a draining server.
+    if (!draining()) {
+      auto claim = store_.claim(request.worker_id(), now(), ttl_ms());
+      if (!claim.ok()) return claim.status();
+      if (claim->has_value()) {
+        Claim& c = **claim;
+        published(c.job);
+        spdlog::info("{} leased by {} (attempt {})", c.job.id(), request.worker_id(), c.job.attempt());
+        response.set_found(true);
+        response.mutable_lease()->set_job_id(c.job.id());
+        response.mutable_lease()->set_lease_token(c.lease_token);
+        response.mutable_lease()->set_attempt(c.job.attempt());
+        *response.mutable_spec() = c.job.spec();
+        response.set_last_delivered_sample_index(c.last_delivered_sample_index);
+        return response;
+      }
+    }
+    const auto now_steady = std::chrono::steady_clock::now();
+    if (now_steady >= deadline || client_gone()) break;
+    notifier_.wait_queue(generation, std::min(deadline, now_steady + std::chrono::seconds(1)));
+  }
+  response.set_found(false);
+  return response;
+}
+
+StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
+  auto id = parse_id(report.lease().job_id(), "lease.job_id");
+  if (!id.ok()) return id.status();
+  const std::string& token = report.lease().lease_token();
+  LeaseCheck check = LeaseCheck::kLost;
+  std::int64_t sequence = 0;
+  v1::JobEvent event;
+  std::optional<int> sample_index;
+  switch (report.kind_case()) {
+    case v1::WorkerReport::kHeartbeat: {
+      auto beat = store_.heartbeat(*id, token, now(), ttl_ms());
+      if (!beat.ok()) return beat.status();
+      check = *beat;
+      break;
+    }
+    case v1::WorkerReport::kProgress:
+      *event.mutable_progress() = report.progress();
+      break;
+    case v1::WorkerReport::kForceSample:
+      *event.mutable_force_sample() = report.force_sample();
+      sample_index = report.force_sample().index();
+      break;
+    case v1::WorkerReport::kDeformationSample:
+      *event.mutable_deformation_sample() = report.deformation_sample();
+      sample_index = report.deformation_sample().index();
+      break;
+    case v1::WorkerReport::KIND_NOT_SET:
+      return invalid_argument("kind: a report needs a heartbeat, progress or sample");
+  }
+  if (!report.has_heartbeat()) {
+    auto outcome = store_.append_event(*id, token, std::move(event), sample_index, now(), ttl_ms());
+    if (!outcome.ok()) return outcome.status();
+    check = outcome->lease;
+    sequence = outcome->sequence;
+    if (sequence > 0) notifier_.publish(*id, sequence);
+  }
+  v1::ReportAck ack;
+  ack.set_report_id(report.report_id());
+  ack.set_lease_valid(check == LeaseCheck::kValid);
+  ack.set_cancelled(check == LeaseCheck::kCancelled);
+  return ack;
+}
+
+StatusOr<std::unique_ptr<ResultUpload>> JobService::begin_upload(const v1::Lease& lease) {
+  auto id = parse_id(lease.job_id(), "lease.job_id");
+  if (!id.ok()) return id.status();
+  auto check = store_.check_lease(*id, lease.lease_token());
+  if (!check.ok()) return check.status();
+  if (*check != LeaseCheck::kValid)
+    return Status(StatusCode::kFailedPrecondition, "lease lost: upload refused");
+  const fs::path path = upload_path(lease);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Status(StatusCode::kInternal, "cannot create " + path.string());
+  return std::make_unique<ResultUpload>(path, fd);
+}
+
+StatusOr<std::int64_t> JobService::adopt_upload(const v1::Lease& lease, std::int64_t job_id) {
+  const fs::path from = upload_path(lease);
+  std::error_code error;
+  if (!fs::exists(from, error)) return static_cast<std::int64_t>(-1);
+  const auto size = static_cast<std::int64_t>(fs::file_size(from, error));
+  fs::rename(from, result_path(job_id), error);
+  if (error) return Status(StatusCode::kInternal, "cannot move the result into place: " + error.message());
+  if (Status s = sync_directory(result_path(job_id).parent_path()); !s.ok()) return s;
+  return size;
+}
+
+StatusOr<v1::FinishJobResponse> JobService::finish(const v1::FinishJobRequest& request) {
+  auto id = parse_id(request.lease().job_id(), "lease.job_id");
+  if (!id.ok()) return id.status();
+  std::error_code error;
+  const fs::path upload = upload_path(request.lease());
+  if (!fs::exists(upload, error)) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "no result uploaded for this lease; upload it, then finish");
+  }
+  const auto size = static_cast<std::int64_t>(fs::file_size(upload, error));
+  auto job = store_.finish(*id, request.lease().lease_token(), size, now(), [&]() -> Status {
+    auto adopted = adopt_upload(request.lease(), *id);
+    return adopted.ok() ? Status() : adopted.status();
+  });
+  if (!job.ok()) return job.status();
+  published(*job);
+  spdlog::info("{} succeeded (attempt {}, result {} bytes)", job->id(), job->attempt(), size);
+  v1::FinishJobResponse response;
+  response.set_state(job->state());
+  return response;
+}
+
+StatusOr<v1::FinishJobResponse> JobService::fail(const v1::FailJobRequest& request) {
+  auto id = parse_id(request.lease().job_id(), "lease.job_id");
+  if (!id.ok()) return id.status();
+  std::error_code error;
+  const fs::path upload = upload_path(request.lease());
+  const bool has_upload = fs::exists(upload, error);
+  const std::int64_t size = has_upload ? static_cast<std::int64_t>(fs::file_size(upload, error)) : -1;
+  const std::string reason = request.reason().empty() ? "the worker reported a failure" : request.reason();
+  auto job = store_.fail(*id, request.lease().lease_token(), reason, size, now(), [&]() -> Status {
+    if (!has_upload) return {};
+    auto adopted = adopt_upload(request.lease(), *id);
+    return adopted.ok() ? Status() : adopted.status();
+  });
+  if (!job.ok()) return job.status();
+  published(*job);
+  spdlog::warn("{} failed: {}", job->id(), reason);
+  v1::FinishJobResponse response;
+  response.set_state(job->state());
+  return response;
+}
+
+StatusOr<v1::FinishJobResponse> JobService::release(const v1::ReleaseJobRequest& request) {
+  auto id = parse_id(request.lease().job_id(), "lease.job_id");
+  if (!id.ok()) return id.status();
+  const std::string reason = request.reason().empty() ? "handed back by the worker" : request.reason();
+  auto job = store_.release(*id, request.lease().lease_token(), reason, now());
+  if (!job.ok()) return job.status();
+  std::error_code error;
+  fs::remove(upload_path(request.lease()), error);
+  published(*job);
+  notifier_.queue_changed();
+  spdlog::info("{} handed back: {}", job->id(), reason);
+  v1::FinishJobResponse response;
+  response.set_state(job->state());
+  return response;
+}
+
+int JobService::reap_expired_leases() {
+  auto changed = store_.requeue_expired(now());
+  if (!changed.ok()) {
+    spdlog::error("lease reaper: {}", changed.status().to_string());
+    return 0;
+  }
+  for (const v1::Job& job : *changed) {
+    published(job);
+    spdlog::warn("{} -> {}: {}", job.id(), v1::Job::State_Name(job.state()), job.reason());
+  }
+  if (!changed->empty()) notifier_.queue_changed();
+  return static_cast<int>(changed->size());
+}
+
+void JobService::set_draining(bool draining) {
+  draining_.store(draining);
+  notifier_.queue_changed();  // wake lease long-polls so they answer "nothing"
+}
+
+int JobService::release_all_running(const std::string& reason) {
+  auto changed = store_.release_all_running(reason, now());
+  if (!changed.ok()) return 0;
+  for (const v1::Job& job : *changed) published(job);
+  return static_cast<int>(changed->size());
+}
+
+}  // namespace cellflow::server

@@ -1,0 +1,109 @@
+// The logic of both gRPC services, free of gRPC: validation, idempotent
+// submission, paging, cancellation, the watch loop, leasing, fenced worker
+// reports and result files. The gRPC handlers (server/grpc_services.h) only
+// translate messages and status codes.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "cellflow/v1/service.pb.h"
+#include "cellflow/v1/worker.pb.h"
+#include "physics/core/status.h"
+#include "server/notifier.h"
+#include "server/store.h"
+
+namespace cellflow::server {
+
+struct JobServiceOptions {
+  std::filesystem::path data_dir;       // database and results/
+  std::int64_t memory_limit_bytes = 0;  // refuse larger jobs; 0: no limit
+  double lease_ttl_s = 10.0;            // a lease not renewed for this long expires
+  double heartbeat_interval_s = 0.25;   // what workers are told; bounds the cancel latency
+  int default_page_size = 50;
+  int max_page_size = 1000;
+  int max_request_id_length = 128;
+  std::size_t download_chunk_bytes = 1 << 20;  // < the 4 MiB gRPC message limit
+  std::function<std::int64_t()> now_ms;        // the clock; unset: system clock
+};
+
+// A result file being uploaded by a worker, written under a temporary name
+// per attempt; it becomes the job's result only on a fenced FinishJob/FailJob.
+class ResultUpload {
+ public:
+  ResultUpload(std::filesystem::path path, int fd) : path_(std::move(path)), fd_(fd) {}
+  ~ResultUpload();
+  ResultUpload(const ResultUpload&) = delete;
+  ResultUpload& operator=(const ResultUpload&) = delete;
+  Status write(std::int64_t offset, const std::string& data);
+  // Syncs and closes; the file stays until the attempt ends.
+  StatusOr<std::int64_t> complete();
+
+ private:
+  std::filesystem::path path_;
+  int fd_ = -1;
+  std::int64_t size_ = 0;
+  bool completed_ = false;
+};
+
+class JobService {
+ public:
+  JobService(Store& store, Notifier& notifier, JobServiceOptions options);
+
+  // --- public API ---
+  StatusOr<v1::SubmitJobResponse> submit(const v1::SubmitJobRequest& request);
+  StatusOr<v1::Job> get(const std::string& job_id);
+  StatusOr<v1::ListJobsResponse> list(const v1::ListJobsRequest& request);
+  StatusOr<v1::Job> cancel(const std::string& job_id);
+  // Sends the events after request.after_sequence, then follows live until
+  // the terminal state event was sent (OK), `send` returns false or
+  // `client_gone` returns true (kCancelled), or the service shuts down.
+  Status watch(const v1::WatchJobRequest& request, const std::function<bool(const v1::JobEvent&)>& send,
+               const std::function<bool()>& client_gone);
+  Status download(const std::string& job_id, const std::function<bool(const v1::ResultChunk&)>& send);
+
+  // --- worker API ---
+  StatusOr<v1::LeaseJobResponse> lease(const v1::LeaseJobRequest& request,
+                                       const std::function<bool()>& client_gone);
+  StatusOr<v1::ReportAck> report(const v1::WorkerReport& report);
+  StatusOr<std::unique_ptr<ResultUpload>> begin_upload(const v1::Lease& lease);
+  StatusOr<v1::FinishJobResponse> finish(const v1::FinishJobRequest& request);
+  StatusOr<v1::FinishJobResponse> fail(const v1::FailJobRequest& request);
+  StatusOr<v1::FinishJobResponse> release(const v1::ReleaseJobRequest& request);
+
+  // --- housekeeping (the server's Asio timers and shutdown) ---
+  // Requeues or fails jobs whose lease expired; returns how many changed.
+  int reap_expired_leases();
+  // Draining: SubmitJob and LeaseJob refuse new work; running jobs go on.
+  void set_draining(bool draining);
+  bool draining() const { return draining_.load(); }
+  // Every RUNNING job back to QUEUED (shutdown after the grace period).
+  int release_all_running(const std::string& reason);
+  std::int64_t running_jobs() { return store_.count(v1::Job::RUNNING); }
+
+  std::filesystem::path result_path(std::int64_t job_id) const;
+  const JobServiceOptions& options() const { return options_; }
+
+ private:
+  std::int64_t now() const { return options_.now_ms(); }
+  std::int64_t ttl_ms() const { return static_cast<std::int64_t>(options_.lease_ttl_s * 1000.0); }
+  std::filesystem::path upload_path(const v1::Lease& lease) const;
+  // Moves the attempt's upload (if any) into place as the job's result.
+  StatusOr<std::int64_t> adopt_upload(const v1::Lease& lease, std::int64_t job_id);
+  void published(const v1::Job& job);
+
+  Store& store_;
+  Notifier& notifier_;
+  JobServiceOptions options_;
+  std::atomic<bool> draining_{false};
+};
+
+// Opaque page tokens: the last id of the page and the filter, base64url.
+std::string encode_page_token(std::int64_t after_id, v1::Job::State state);
+StatusOr<std::int64_t> decode_page_token(const std::string& token, v1::Job::State state);
+
+}  // namespace cellflow::server

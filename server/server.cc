@@ -1,0 +1,238 @@
+#include "server/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include "server/grpc_services.h"
+#include "server/job_service.h"
+#include "server/notifier.h"
+#include "server/store.h"
+#include "server/worker_pool.h"
+
+namespace cellflow::server {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+namespace {
+
+std::string default_worker_path() {
+  std::error_code error;
+  const fs::path self = fs::read_symlink("/proc/self/exe", error);
+  return error ? "cellflow-worker" : (self.parent_path() / "cellflow-worker").string();
+}
+
+std::int64_t physical_memory_bytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES);
+  const long page_size = ::sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page_size > 0 ? static_cast<std::int64_t>(pages) * page_size : 0;
+}
+
+// host:port -> the host part; "[::]:0" -> "[::]".
+std::string host_of(const std::string& address) {
+  const auto colon = address.rfind(':');
+  return colon == std::string::npos ? address : address.substr(0, colon);
+}
+
+bool write_port_file(const std::string& path, int port) {
+  const std::string temporary = path + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::trunc);
+    out << port << "\n";
+    if (!out) return false;
+  }
+  return std::rename(temporary.c_str(), path.c_str()) == 0;
+}
+
+// The shutdown sequence: drain (no new work; running jobs may finish for
+// grace_s), stop the local workers (they hand their jobs back), requeue what
+// still runs elsewhere, stop the gRPC server.
+class Shutdown {
+ public:
+  Shutdown(boost::asio::io_context& io, JobService& jobs, Notifier& notifier, WorkerPool& pool,
+           grpc::Server& server, double grace_s)
+      : io_(io),
+        jobs_(jobs),
+        notifier_(notifier),
+        pool_(pool),
+        server_(server),
+        grace_s_(grace_s),
+        poll_(io) {}
+
+  void begin(int signal_number) {
+    if (phase_ == Phase::kDraining) {
+      spdlog::warn("second signal: not waiting for running jobs");
+      stop_workers();
+      return;
+    }
+    if (phase_ != Phase::kRunning) return;
+    phase_ = Phase::kDraining;
+    spdlog::info("signal {}: draining; running jobs may finish within {} s", signal_number, grace_s_);
+    jobs_.set_draining(true);
+    if (auto* health = server_.GetHealthCheckService()) health->SetServingStatus(false);
+    deadline_ =
+        std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<int>(grace_s_ * 1000));
+    poll();
+  }
+
+ private:
+  enum class Phase { kRunning, kDraining, kStoppingWorkers, kDone };
+
+  void poll() {
+    if (phase_ != Phase::kDraining) return;
+    const std::int64_t running = jobs_.running_jobs();
+    if (running <= 0 || std::chrono::steady_clock::now() >= deadline_) {
+      if (running > 0) spdlog::info("grace period over; {} job(s) still running", running);
+      stop_workers();
+      return;
+    }
+    // Polled at 10 Hz only while draining: completions are rare and this
+    // keeps the shutdown path independent of the notifier.
+    poll_.expires_after(100ms);
+    poll_.async_wait([this](const boost::system::error_code& error) {
+      if (!error) poll();
+    });
+  }
+
+  void stop_workers() {
+    phase_ = Phase::kStoppingWorkers;
+    poll_.cancel();
+    pool_.stop(10s, [this] { finish(); });
+  }
+
+  void finish() {
+    if (phase_ == Phase::kDone) return;
+    phase_ = Phase::kDone;
+    const int requeued = jobs_.release_all_running("the server shut down; the job will run again");
+    if (requeued > 0) spdlog::info("{} running job(s) handed back to the queue", requeued);
+    notifier_.shutdown();
+    server_.Shutdown(std::chrono::system_clock::now() + 2s);
+    io_.stop();
+  }
+
+  boost::asio::io_context& io_;
+  JobService& jobs_;
+  Notifier& notifier_;
+  WorkerPool& pool_;
+  grpc::Server& server_;
+  double grace_s_;
+  boost::asio::steady_timer poll_;
+  Phase phase_ = Phase::kRunning;
+  std::chrono::steady_clock::time_point deadline_;
+};
+
+void schedule_reaper(boost::asio::steady_timer& timer, JobService& jobs, std::chrono::milliseconds period) {
+  timer.expires_after(period);
+  timer.async_wait([&timer, &jobs, period](const boost::system::error_code& error) {
+    if (error) return;
+    jobs.reap_expired_leases();
+    schedule_reaper(timer, jobs, period);
+  });
+}
+
+}  // namespace
+
+int run_server(const ServerOptions& options) {
+  std::error_code error;
+  fs::create_directories(options.data_dir, error);
+  if (error) {
+    spdlog::error("cannot create data directory {}: {}", options.data_dir, error.message());
+    return 1;
+  }
+  StoreOptions store_options;
+  store_options.path = (fs::path(options.data_dir) / "cellflow.sqlite").string();
+  store_options.max_attempts = options.max_attempts;
+  store_options.synchronous_full = options.sqlite_synchronous_full;
+  auto store = Store::open(store_options);
+  if (!store.ok()) {
+    spdlog::error("{}", store.status().to_string());
+    return 1;
+  }
+  const auto ttl_ms = static_cast<std::int64_t>(options.lease_ttl_s * 1000);
+  const auto now_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                          std::chrono::system_clock::now().time_since_epoch())
+                          .count();
+  if (Status s = (*store)->extend_running_leases(now_ms, ttl_ms); !s.ok()) {
+    spdlog::error("{}", s.to_string());
+    return 1;
+  }
+  spdlog::info("database {} (schema version {}): {} queued, {} running", store_options.path,
+               (*store)->schema_version(), (*store)->count(v1::Job::QUEUED),
+               (*store)->count(v1::Job::RUNNING));
+
+  Notifier notifier;
+  JobServiceOptions service_options;
+  service_options.data_dir = options.data_dir;
+  service_options.memory_limit_bytes =
+      options.memory_limit_bytes >= 0 ? options.memory_limit_bytes : physical_memory_bytes() / 10 * 8;
+  service_options.lease_ttl_s = options.lease_ttl_s;
+  service_options.heartbeat_interval_s = options.heartbeat_interval_s;
+  JobService jobs(**store, notifier, service_options);
+  CellflowServiceImpl public_api(jobs);
+  WorkerServiceImpl worker_api(jobs);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&public_api);
+  builder.RegisterService(&worker_api);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || port == 0) {
+    spdlog::error("cannot listen on {}", options.listen);
+    return 1;
+  }
+  const std::string host = host_of(options.listen);
+  std::cout << "cellflow-server listening on " << host << ":" << port << std::endl;
+  if (!options.port_file.empty() && !write_port_file(options.port_file, port)) {
+    spdlog::error("cannot write {}", options.port_file);
+    return 1;
+  }
+
+  boost::asio::io_context io;
+  WorkerPoolOptions pool_options;
+  pool_options.count = options.workers;
+  pool_options.worker_path = options.worker_path.empty() ? default_worker_path() : options.worker_path;
+  // Local workers dial loopback whatever address the server listens on.
+  const bool wildcard = host == "0.0.0.0" || host == "[::]" || host.empty();
+  pool_options.server_address = (wildcard ? std::string("127.0.0.1") : host) + ":" + std::to_string(port);
+  pool_options.extra_args = options.worker_args;
+  WorkerPool pool(io, pool_options);
+  pool.start();
+
+  boost::asio::steady_timer reaper(io);
+  const auto reap_period = std::clamp(std::chrono::milliseconds(ttl_ms / 4), std::chrono::milliseconds(50),
+                                      std::chrono::milliseconds(1000));
+  schedule_reaper(reaper, jobs, reap_period);
+
+  Shutdown shutdown(io, jobs, notifier, pool, *server, options.grace_s);
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
+  std::function<void()> wait_signal = [&] {
+    signals.async_wait([&](const boost::system::error_code& e, int signal_number) {
+      if (e) return;
+      shutdown.begin(signal_number);
+      wait_signal();
+    });
+  };
+  wait_signal();
+
+  io.run();
+  server->Wait();
+  spdlog::info("cellflow-server stopped");
+  return 0;
+}
+
+}  // namespace cellflow::server

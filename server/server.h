@@ -1,0 +1,31 @@
+// cellflow-server: the gRPC services over the SQLite queue, the lease reaper,
+// graceful shutdown and the local worker pool, all driven by one Boost.Asio
+// io_context on the main thread.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace cellflow::server {
+
+struct ServerOptions {
+  std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free port
+  std::string data_dir = "cellflow-data";  // cellflow.sqlite and results/
+  std::string port_file;                   // if set, the chosen port is written here
+  int workers = 0;                         // local cellflow-worker processes
+  std::string worker_path;                 // default: cellflow-worker beside this binary
+  std::vector<std::string> worker_args;    // extra arguments for local workers
+  double lease_ttl_s = 10.0;
+  double heartbeat_interval_s = 0.25;
+  int max_attempts = 3;
+  std::int64_t memory_limit_bytes = -1;  // -1: 80 % of physical memory; 0: no limit
+  double grace_s = 30.0;                 // how long running jobs may finish on SIGTERM
+  bool sqlite_synchronous_full = false;
+};
+
+// Runs until SIGINT/SIGTERM; returns the process exit code (0 after a clean
+// shutdown).
+int run_server(const ServerOptions& options);
+
+}  // namespace cellflow::server

@@ -1,0 +1,758 @@
+#include "server/store.h"
+
+#include <sqlite3.h>
+
+#include <cstdio>
+#include <random>
+
+namespace cellflow::server {
+
+namespace {
+
+constexpr const char* kJobColumns =
+    "id, request_id, spec, state, attempt, worker_id, reason, fraction_done, remaining_s, last_seq, "
+    "result_bytes, memory_bytes, create_ms, start_ms, end_ms";
+
+// Migrations: entry i takes the schema from version i to i + 1.
+const char* const kMigrations[] = {
+    R"sql(
+CREATE TABLE jobs (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  request_id TEXT UNIQUE,
+  spec BLOB NOT NULL,
+  state INTEGER NOT NULL CHECK (state BETWEEN 1 AND 5),
+  attempt INTEGER NOT NULL DEFAULT 0,
+  released INTEGER NOT NULL DEFAULT 0,
+  lease_token TEXT,
+  lease_expires_ms INTEGER,
+  worker_id TEXT NOT NULL DEFAULT '',
+  reason TEXT NOT NULL DEFAULT '',
+  fraction_done REAL NOT NULL DEFAULT 0,
+  remaining_s REAL NOT NULL DEFAULT -1,
+  last_seq INTEGER NOT NULL DEFAULT 0,
+  result_bytes INTEGER NOT NULL DEFAULT 0,
+  memory_bytes INTEGER NOT NULL DEFAULT 0,
+  create_ms INTEGER NOT NULL,
+  start_ms INTEGER,
+  end_ms INTEGER
+);
+CREATE INDEX jobs_by_state ON jobs (state, id);
+CREATE TABLE events (
+  job_id INTEGER NOT NULL REFERENCES jobs (id),
+  seq INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  kind TEXT NOT NULL,
+  sample_index INTEGER,
+  time_ms INTEGER NOT NULL,
+  payload BLOB NOT NULL,
+  PRIMARY KEY (job_id, seq)
+) WITHOUT ROWID;
+CREATE UNIQUE INDEX events_by_sample ON events (job_id, kind, sample_index) WHERE sample_index IS NOT NULL;
+)sql",
+};
+
+Status sqlite_error(sqlite3* db, const std::string& what) {
+  return {StatusCode::kInternal, "sqlite: " + what + ": " + (db ? sqlite3_errmsg(db) : "no connection")};
+}
+
+// A prepared statement with positional binds.
+class Stmt {
+ public:
+  Stmt(sqlite3* db, const char* sql) : db_(db) {
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) stmt_ = nullptr;
+  }
+  ~Stmt() { sqlite3_finalize(stmt_); }
+  Stmt(const Stmt&) = delete;
+  Stmt& operator=(const Stmt&) = delete;
+
+  bool ok() const { return stmt_ != nullptr; }
+  Stmt& bind(int i, std::int64_t v) {
+    sqlite3_bind_int64(stmt_, i, v);
+    return *this;
+  }
+  Stmt& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
+  Stmt& bind(int i, double v) {
+    sqlite3_bind_double(stmt_, i, v);
+    return *this;
+  }
+  Stmt& bind(int i, const std::string& v) {
+    sqlite3_bind_text(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
+    return *this;
+  }
+  Stmt& bind_blob(int i, const std::string& v) {
+    sqlite3_bind_blob(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
+    return *this;
+  }
+  Stmt& bind_null(int i) {
+    sqlite3_bind_null(stmt_, i);
+    return *this;
+  }
+  // SQLITE_ROW, SQLITE_DONE or an error code.
+  int step() { return sqlite3_step(stmt_); }
+  // Ends a pending read so that COMMIT finds no statement in progress.
+  void reset() { sqlite3_reset(stmt_); }
+  std::int64_t int64(int col) const { return sqlite3_column_int64(stmt_, col); }
+  double real(int col) const { return sqlite3_column_double(stmt_, col); }
+  bool is_null(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL; }
+  std::string text(int col) const {
+    const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, col));
+    return p ? std::string(p, sqlite3_column_bytes(stmt_, col)) : std::string();
+  }
+  std::string blob(int col) const {
+    const auto* p = static_cast<const char*>(sqlite3_column_blob(stmt_, col));
+    return p ? std::string(p, sqlite3_column_bytes(stmt_, col)) : std::string();
+  }
+
+ private:
+  sqlite3* db_;
+  sqlite3_stmt* stmt_ = nullptr;
+};
+
+Status exec(sqlite3* db, const char* sql) {
+  char* error = nullptr;
+  if (sqlite3_exec(db, sql, nullptr, nullptr, &error) != SQLITE_OK) {
+    std::string message = error ? error : "unknown";
+    sqlite3_free(error);
+    return {StatusCode::kInternal, std::string("sqlite: ") + message + " in: " + sql};
+  }
+  return {};
+}
+
+// BEGIN IMMEDIATE ... COMMIT; rolls back unless committed.
+class WriteTransaction {
+ public:
+  explicit WriteTransaction(sqlite3* db) : db_(db) { status_ = exec(db, "BEGIN IMMEDIATE"); }
+  ~WriteTransaction() {
+    if (status_.ok() && !committed_) (void)exec(db_, "ROLLBACK");
+  }
+  const Status& status() const { return status_; }
+  Status commit() {
+    Status s = exec(db_, "COMMIT");
+    committed_ = s.ok();
+    return s;
+  }
+
+ private:
+  sqlite3* db_;
+  Status status_;
+  bool committed_ = false;
+};
+
+google::protobuf::Timestamp timestamp_from_ms(std::int64_t ms) {
+  google::protobuf::Timestamp t;
+  t.set_seconds(ms / 1000);
+  t.set_nanos(static_cast<int>((ms % 1000) * 1000000));
+  return t;
+}
+
+v1::Job job_from_row(const Stmt& row) {
+  v1::Job job;
+  job.set_id(job_name(row.int64(0)));
+  job.set_request_id(row.text(1));
+  job.mutable_spec()->ParseFromString(row.blob(2));
+  job.set_state(static_cast<v1::Job::State>(row.int64(3)));
+  job.set_attempt(static_cast<int>(row.int64(4)));
+  job.set_worker_id(row.text(5));
+  job.set_reason(row.text(6));
+  job.set_fraction_done(row.real(7));
+  job.set_estimated_remaining_s(row.real(8));
+  job.set_last_sequence(row.int64(9));
+  job.set_result_size_bytes(row.int64(10));
+  job.set_estimated_memory_bytes(row.int64(11));
+  *job.mutable_create_time() = timestamp_from_ms(row.int64(12));
+  if (!row.is_null(13)) *job.mutable_start_time() = timestamp_from_ms(row.int64(13));
+  if (!row.is_null(14)) *job.mutable_end_time() = timestamp_from_ms(row.int64(14));
+  return job;
+}
+
+StatusOr<v1::Job> load_job(sqlite3* db, std::int64_t job_id) {
+  const std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?";
+  Stmt stmt(db, sql.c_str());
+  if (!stmt.ok()) return sqlite_error(db, "prepare get");
+  stmt.bind(1, job_id);
+  const int rc = stmt.step();
+  if (rc == SQLITE_DONE) return Status(StatusCode::kNotFound, "job " + job_name(job_id) + " not found");
+  if (rc != SQLITE_ROW) return sqlite_error(db, "get");
+  return job_from_row(stmt);
+}
+
+const char* kind_name(const v1::JobEvent& event) {
+  switch (event.kind_case()) {
+    case v1::JobEvent::kStateChange:
+      return "state";
+    case v1::JobEvent::kProgress:
+      return "progress";
+    case v1::JobEvent::kForceSample:
+      return "force_sample";
+    case v1::JobEvent::kDeformationSample:
+      return "deformation_sample";
+    case v1::JobEvent::KIND_NOT_SET:
+      break;
+  }
+  return "none";
+}
+
+// Appends `event` as the job's next event (inside a write transaction).
+StatusOr<std::int64_t> append_event_row(sqlite3* db, std::int64_t job_id, int attempt, v1::JobEvent event,
+                                        std::optional<int> sample_index, std::int64_t now_ms) {
+  Stmt bump(db, "UPDATE jobs SET last_seq = last_seq + 1 WHERE id = ? RETURNING last_seq");
+  bump.bind(1, job_id);
+  if (bump.step() != SQLITE_ROW) return sqlite_error(db, "sequence");
+  const std::int64_t sequence = bump.int64(0);
+  event.set_job_id(job_name(job_id));
+  event.set_sequence(sequence);
+  event.set_attempt(attempt);
+  *event.mutable_time() = timestamp_from_ms(now_ms);
+  Stmt insert(db,
+              "INSERT INTO events (job_id, seq, attempt, kind, sample_index, time_ms, payload) "
+              "VALUES (?, ?, ?, ?, ?, ?, ?)");
+  insert.bind(1, job_id).bind(2, sequence).bind(3, attempt).bind(4, std::string(kind_name(event)));
+  if (sample_index) {
+    insert.bind(5, *sample_index);
+  } else {
+    insert.bind_null(5);
+  }
+  insert.bind(6, now_ms).bind_blob(7, event.SerializeAsString());
+  if (insert.step() != SQLITE_DONE) return sqlite_error(db, "insert event");
+  return sequence;
+}
+
+v1::JobEvent state_event(v1::Job::State state, const std::string& reason, const std::string& worker_id) {
+  v1::JobEvent event;
+  auto* change = event.mutable_state_change();
+  change->set_state(state);
+  change->set_reason(reason);
+  change->set_worker_id(worker_id);
+  return event;
+}
+
+// Lease state of a job for `token`, read inside the caller's transaction.
+StatusOr<LeaseCheck> lease_state(sqlite3* db, std::int64_t job_id, const std::string& token) {
+  Stmt stmt(db, "SELECT state, lease_token FROM jobs WHERE id = ?");
+  stmt.bind(1, job_id);
+  const int rc = stmt.step();
+  if (rc == SQLITE_DONE) return Status(StatusCode::kNotFound, "job " + job_name(job_id) + " not found");
+  if (rc != SQLITE_ROW) return sqlite_error(db, "lease state");
+  const auto state = static_cast<v1::Job::State>(stmt.int64(0));
+  if (state == v1::Job::CANCELLED) return LeaseCheck::kCancelled;
+  if (state == v1::Job::RUNNING && !stmt.is_null(1) && stmt.text(1) == token) return LeaseCheck::kValid;
+  return LeaseCheck::kLost;
+}
+
+Status lease_status(LeaseCheck check) {
+  if (check == LeaseCheck::kCancelled)
+    return {StatusCode::kFailedPrecondition, "lease lost: the job was cancelled"};
+  return {StatusCode::kFailedPrecondition, "lease lost: the job is no longer running under this lease token"};
+}
+
+}  // namespace
+
+std::string job_name(std::int64_t id) {
+  return "job-" + std::to_string(id);
+}
+
+std::optional<std::int64_t> parse_job_name(const std::string& name) {
+  std::string digits = name.rfind("job-", 0) == 0 ? name.substr(4) : name;
+  if (digits.empty() || digits.size() > 18) return std::nullopt;
+  std::int64_t id = 0;
+  for (char c : digits) {
+    if (c < '0' || c > '9') return std::nullopt;
+    id = id * 10 + (c - '0');
+  }
+  if (id <= 0) return std::nullopt;
+  return id;
+}
+
+bool is_terminal(v1::Job::State state) {
+  return state == v1::Job::SUCCEEDED || state == v1::Job::FAILED || state == v1::Job::CANCELLED;
+}
+
+class Store::Reader {
+ public:
+  Reader(Store* store, sqlite3* db) : store_(store), db_(db) {}
+  ~Reader() {
+    if (db_ == nullptr) return;
+    std::lock_guard lock(store_->readers_mutex_);
+    store_->idle_readers_.push_back(db_);
+  }
+  Reader(Reader&& other) noexcept : store_(other.store_), db_(std::exchange(other.db_, nullptr)) {}
+  sqlite3* get() const { return db_; }
+
+ private:
+  Store* store_;
+  sqlite3* db_;
+};
+
+namespace {
+
+StatusOr<sqlite3*> open_connection(const StoreOptions& options) {
+  sqlite3* db = nullptr;
+  const int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX;
+  if (sqlite3_open_v2(options.path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
+    Status s = sqlite_error(db, "open " + options.path);
+    sqlite3_close(db);
+    return s;
+  }
+  sqlite3_busy_timeout(db, options.busy_timeout_ms);
+  for (const char* pragma : {"PRAGMA journal_mode = WAL", "PRAGMA foreign_keys = ON"}) {
+    if (Status s = exec(db, pragma); !s.ok()) {
+      sqlite3_close(db);
+      return s;
+    }
+  }
+  if (Status s =
+          exec(db, options.synchronous_full ? "PRAGMA synchronous = FULL" : "PRAGMA synchronous = NORMAL");
+      !s.ok()) {
+    sqlite3_close(db);
+    return s;
+  }
+  return db;
+}
+
+}  // namespace
+
+Store::Reader Store::reader() {
+  {
+    std::lock_guard lock(readers_mutex_);
+    if (!idle_readers_.empty()) {
+      sqlite3* db = idle_readers_.back();
+      idle_readers_.pop_back();
+      return Reader(this, db);
+    }
+  }
+  auto db = open_connection(options_);
+  return Reader(this, db.ok() ? *db : nullptr);
+}
+
+Store::Store(StoreOptions options) : options_(std::move(options)) {
+  std::random_device device;
+  token_seed_[0] = (static_cast<std::uint64_t>(device()) << 32) ^ device();
+  token_seed_[1] = (static_cast<std::uint64_t>(device()) << 32) ^ device();
+}
+
+Store::~Store() {
+  for (sqlite3* db : idle_readers_) sqlite3_close(db);
+  if (writer_) sqlite3_close(writer_);
+}
+
+StatusOr<std::unique_ptr<Store>> Store::open(const StoreOptions& options) {
+  std::unique_ptr<Store> store(new Store(options));
+  auto writer = open_connection(options);
+  if (!writer.ok()) return writer.status();
+  store->writer_ = *writer;
+  if (Status s = store->migrate(); !s.ok()) return s;
+  return store;
+}
+
+int Store::schema_version() {
+  std::lock_guard lock(write_mutex_);
+  Stmt stmt(writer_, "SELECT version FROM schema_version");
+  return stmt.ok() && stmt.step() == SQLITE_ROW ? static_cast<int>(stmt.int64(0)) : 0;
+}
+
+Status Store::migrate() {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  if (Status s = exec(writer_, "CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)");
+      !s.ok()) {
+    return s;
+  }
+  int version = 0;
+  {
+    Stmt stmt(writer_, "SELECT version FROM schema_version");
+    if (stmt.step() == SQLITE_ROW) {
+      version = static_cast<int>(stmt.int64(0));
+    } else if (Status s = exec(writer_, "INSERT INTO schema_version (version) VALUES (0)"); !s.ok()) {
+      return s;
+    }
+  }
+  constexpr int latest = static_cast<int>(sizeof kMigrations / sizeof kMigrations[0]);
+  static_assert(latest == kSchemaVersion);
+  if (version > latest) {
+    return {StatusCode::kFailedPrecondition, "database schema version " + std::to_string(version) +
+                                                 " is newer than this server's (" + std::to_string(latest) +
+                                                 ")"};
+  }
+  for (; version < latest; ++version) {
+    if (Status s = exec(writer_, kMigrations[version]); !s.ok()) return s;
+  }
+  Stmt update(writer_, "UPDATE schema_version SET version = ?");
+  update.bind(1, latest);
+  if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "schema version");
+  return txn.commit();
+}
+
+StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::string& request_id,
+                                         std::int64_t estimated_memory_bytes, std::int64_t now_ms) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  if (!request_id.empty()) {
+    Stmt find(writer_, "SELECT id FROM jobs WHERE request_id = ?");
+    find.bind(1, request_id);
+    if (find.step() == SQLITE_ROW) {
+      auto job = load_job(writer_, find.int64(0));
+      if (!job.ok()) return job.status();
+      return Submitted{std::move(*job), true};
+    }
+  }
+  Stmt insert(writer_,
+              "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms) VALUES (?, ?, ?, ?, ?) "
+              "RETURNING id");
+  if (request_id.empty()) {
+    insert.bind_null(1);
+  } else {
+    insert.bind(1, request_id);
+  }
+  insert.bind_blob(2, spec.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
+  insert.bind(4, estimated_memory_bytes).bind(5, now_ms);
+  if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert job");
+  const std::int64_t id = insert.int64(0);
+  insert.step();
+  auto seq =
+      append_event_row(writer_, id, 0, state_event(v1::Job::QUEUED, "submitted", ""), std::nullopt, now_ms);
+  if (!seq.ok()) return seq.status();
+  auto job = load_job(writer_, id);
+  if (!job.ok()) return job.status();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return Submitted{std::move(*job), false};
+}
+
+StatusOr<v1::Job> Store::get(std::int64_t job_id) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  return load_job(r.get(), job_id);
+}
+
+StatusOr<std::vector<v1::Job>> Store::list(std::int64_t after_id, int limit, v1::Job::State state) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  const std::string sql = std::string("SELECT ") + kJobColumns +
+                          " FROM jobs WHERE id > ? AND (? = 0 OR state = ?)" + " ORDER BY id LIMIT ?";
+  Stmt stmt(r.get(), sql.c_str());
+  stmt.bind(1, after_id).bind(2, static_cast<int>(state)).bind(3, static_cast<int>(state)).bind(4, limit);
+  std::vector<v1::Job> jobs;
+  int rc;
+  while ((rc = stmt.step()) == SQLITE_ROW) jobs.push_back(job_from_row(stmt));
+  if (rc != SQLITE_DONE) return sqlite_error(r.get(), "list");
+  return jobs;
+}
+
+std::int64_t Store::count(v1::Job::State state) {
+  Reader r = reader();
+  if (!r.get()) return -1;
+  Stmt stmt(r.get(), "SELECT COUNT(*) FROM jobs WHERE state = ?");
+  stmt.bind(1, static_cast<int>(state));
+  return stmt.step() == SQLITE_ROW ? stmt.int64(0) : -1;
+}
+
+StatusOr<v1::Job> Store::cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  auto job = load_job(writer_, job_id);
+  if (!job.ok()) return job.status();
+  if (job->state() == v1::Job::CANCELLED) return job;
+  if (is_terminal(job->state())) {
+    return Status(
+        StatusCode::kFailedPrecondition,
+        job->id() + " has already " + (job->state() == v1::Job::SUCCEEDED ? "succeeded" : "failed"));
+  }
+  Stmt update(
+      writer_,
+      "UPDATE jobs SET state = ?, lease_token = NULL, lease_expires_ms = NULL, reason = ?, end_ms = ? "
+      "WHERE id = ?");
+  update.bind(1, static_cast<int>(v1::Job::CANCELLED)).bind(2, reason).bind(3, now_ms).bind(4, job_id);
+  if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "cancel");
+  auto seq =
+      append_event_row(writer_, job_id, job->attempt(),
+                       state_event(v1::Job::CANCELLED, reason, job->worker_id()), std::nullopt, now_ms);
+  if (!seq.ok()) return seq.status();
+  auto updated = load_job(writer_, job_id);
+  if (!updated.ok()) return updated.status();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return updated;
+}
+
+StatusOr<std::optional<Claim>> Store::claim(const std::string& worker_id, std::int64_t now_ms,
+                                            std::int64_t lease_ttl_ms) {
+  std::lock_guard lock(write_mutex_);
+  // A fresh 128-bit token per lease: splitmix64 over a random seed and a counter.
+  auto mix = [](std::uint64_t z) {
+    z += 0x9e3779b97f4a7c15ULL;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  };
+  ++token_counter_;
+  char token[33];
+  std::snprintf(
+      token, sizeof token, "%016llx%016llx",
+      static_cast<unsigned long long>(mix(token_seed_[0] + token_counter_)),
+      static_cast<unsigned long long>(mix(token_seed_[1] ^ (token_counter_ * 0x2545f4914f6cdd1dULL))));
+
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  Stmt update(
+      writer_,
+      "UPDATE jobs SET state = ?1, attempt = attempt + 1, lease_token = ?2, lease_expires_ms = ?3, "
+      "worker_id = ?4, start_ms = COALESCE(start_ms, ?5), reason = '', fraction_done = 0, remaining_s = -1 "
+      "WHERE id = (SELECT id FROM jobs WHERE state = ?6 ORDER BY id LIMIT 1) "
+      "RETURNING id, attempt");
+  update.bind(1, static_cast<int>(v1::Job::RUNNING))
+      .bind(2, std::string(token))
+      .bind(3, now_ms + lease_ttl_ms);
+  update.bind(4, worker_id).bind(5, now_ms).bind(6, static_cast<int>(v1::Job::QUEUED));
+  const int rc = update.step();
+  if (rc == SQLITE_DONE) return std::optional<Claim>();
+  if (rc != SQLITE_ROW) return sqlite_error(writer_, "claim");
+  const std::int64_t id = update.int64(0);
+  const int attempt = static_cast<int>(update.int64(1));
+  update.step();
+  auto seq = append_event_row(
+      writer_, id, attempt,
+      state_event(v1::Job::RUNNING, "leased (attempt " + std::to_string(attempt) + ")", worker_id),
+      std::nullopt, now_ms);
+  if (!seq.ok()) return seq.status();
+  Claim claim;
+  auto job = load_job(writer_, id);
+  if (!job.ok()) return job.status();
+  claim.job = std::move(*job);
+  claim.lease_token = token;
+  Stmt last(writer_, "SELECT MAX(sample_index) FROM events WHERE job_id = ? AND sample_index IS NOT NULL");
+  last.bind(1, id);
+  if (last.step() == SQLITE_ROW && !last.is_null(0))
+    claim.last_delivered_sample_index = static_cast<int>(last.int64(0));
+  last.reset();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return std::optional<Claim>(std::move(claim));
+}
+
+StatusOr<LeaseCheck> Store::heartbeat(std::int64_t job_id, const std::string& lease_token,
+                                      std::int64_t now_ms, std::int64_t lease_ttl_ms) {
+  std::lock_guard lock(write_mutex_);
+  Stmt update(writer_, "UPDATE jobs SET lease_expires_ms = ? WHERE id = ? AND lease_token = ? AND state = ?");
+  update.bind(1, now_ms + lease_ttl_ms)
+      .bind(2, job_id)
+      .bind(3, lease_token)
+      .bind(4, static_cast<int>(v1::Job::RUNNING));
+  if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "heartbeat");
+  if (sqlite3_changes(writer_) == 1) return LeaseCheck::kValid;
+  return lease_state(writer_, job_id, lease_token);
+}
+
+StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::string& lease_token,
+                                            v1::JobEvent event, std::optional<int> sample_index,
+                                            std::int64_t now_ms, std::int64_t lease_ttl_ms) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  // The fence: renew the lease only if this token still holds it.
+  Stmt renew(writer_,
+             "UPDATE jobs SET lease_expires_ms = ? WHERE id = ? AND lease_token = ? AND state = ? RETURNING "
+             "attempt");
+  renew.bind(1, now_ms + lease_ttl_ms)
+      .bind(2, job_id)
+      .bind(3, lease_token)
+      .bind(4, static_cast<int>(v1::Job::RUNNING));
+  const int rc = renew.step();
+  if (rc != SQLITE_ROW) {
+    if (rc != SQLITE_DONE) return sqlite_error(writer_, "renew");
+    auto check = lease_state(writer_, job_id, lease_token);
+    if (!check.ok()) return check.status();
+    return ReportOutcome{*check, 0};
+  }
+  const int attempt = static_cast<int>(renew.int64(0));
+  renew.step();
+  if (sample_index) {
+    Stmt last(
+        writer_,
+        "SELECT MAX(sample_index) FROM events WHERE job_id = ? AND kind = ? AND sample_index IS NOT NULL");
+    last.bind(1, job_id).bind(2, std::string(kind_name(event)));
+    const bool delivered = last.step() == SQLITE_ROW && !last.is_null(0) && last.int64(0) >= *sample_index;
+    last.reset();
+    if (delivered) {
+      // Already delivered (by this attempt's resend or an earlier attempt): keep the lease renewal only.
+      if (Status s = txn.commit(); !s.ok()) return s;
+      return ReportOutcome{LeaseCheck::kValid, 0};
+    }
+  }
+  if (event.has_progress()) {
+    Stmt progress(writer_, "UPDATE jobs SET fraction_done = ?, remaining_s = ? WHERE id = ?");
+    progress.bind(1, event.progress().fraction_done())
+        .bind(2, event.progress().estimated_remaining_s())
+        .bind(3, job_id);
+    if (progress.step() != SQLITE_DONE) return sqlite_error(writer_, "progress");
+  }
+  auto seq = append_event_row(writer_, job_id, attempt, std::move(event), sample_index, now_ms);
+  if (!seq.ok()) return seq.status();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return ReportOutcome{LeaseCheck::kValid, *seq};
+}
+
+namespace {
+
+// The fenced terminal transition shared by finish, fail and release.
+StatusOr<v1::Job> end_attempt(sqlite3* db, std::int64_t job_id, const std::string& lease_token,
+                              v1::Job::State state, const std::string& reason, std::int64_t result_size_bytes,
+                              std::int64_t now_ms, const std::function<Status()>& before_commit) {
+  WriteTransaction txn(db);
+  if (!txn.status().ok()) return txn.status();
+  const bool released = state == v1::Job::QUEUED;
+  Stmt update(
+      db, released ? "UPDATE jobs SET state = ?1, lease_token = NULL, lease_expires_ms = NULL, reason = ?2, "
+                     "released = released + 1, fraction_done = 0, remaining_s = -1 "
+                     "WHERE id = ?3 AND lease_token = ?4 AND state = ?5 RETURNING attempt, worker_id"
+                   : "UPDATE jobs SET state = ?1, lease_token = NULL, lease_expires_ms = NULL, reason = ?2, "
+                     "end_ms = ?6, result_bytes = CASE WHEN ?7 < 0 THEN result_bytes ELSE ?7 END, "
+                     "fraction_done = CASE WHEN ?1 = 3 THEN 1.0 ELSE fraction_done END, remaining_s = 0 "
+                     "WHERE id = ?3 AND lease_token = ?4 AND state = ?5 RETURNING attempt, worker_id");
+  update.bind(1, static_cast<int>(state)).bind(2, reason).bind(3, job_id).bind(4, lease_token);
+  update.bind(5, static_cast<int>(v1::Job::RUNNING));
+  if (!released) update.bind(6, now_ms).bind(7, result_size_bytes);
+  const int rc = update.step();
+  if (rc != SQLITE_ROW) {
+    if (rc != SQLITE_DONE) return sqlite_error(db, "end attempt");
+    auto check = lease_state(db, job_id, lease_token);
+    if (!check.ok()) return check.status();
+    return lease_status(*check);
+  }
+  const int attempt = static_cast<int>(update.int64(0));
+  const std::string worker_id = update.text(1);
+  update.step();
+  if (before_commit) {
+    if (Status s = before_commit(); !s.ok()) return s;
+  }
+  auto seq =
+      append_event_row(db, job_id, attempt, state_event(state, reason, worker_id), std::nullopt, now_ms);
+  if (!seq.ok()) return seq.status();
+  auto job = load_job(db, job_id);
+  if (!job.ok()) return job.status();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return job;
+}
+
+}  // namespace
+
+StatusOr<v1::Job> Store::finish(std::int64_t job_id, const std::string& lease_token,
+                                std::int64_t result_size_bytes, std::int64_t now_ms,
+                                const std::function<Status()>& before_commit) {
+  std::lock_guard lock(write_mutex_);
+  return end_attempt(writer_, job_id, lease_token, v1::Job::SUCCEEDED, "", result_size_bytes, now_ms,
+                     before_commit);
+}
+
+StatusOr<v1::Job> Store::fail(std::int64_t job_id, const std::string& lease_token, const std::string& reason,
+                              std::int64_t result_size_bytes, std::int64_t now_ms,
+                              const std::function<Status()>& before_commit) {
+  std::lock_guard lock(write_mutex_);
+  return end_attempt(writer_, job_id, lease_token, v1::Job::FAILED, reason, result_size_bytes, now_ms,
+                     before_commit);
+}
+
+StatusOr<v1::Job> Store::release(std::int64_t job_id, const std::string& lease_token,
+                                 const std::string& reason, std::int64_t now_ms) {
+  std::lock_guard lock(write_mutex_);
+  return end_attempt(writer_, job_id, lease_token, v1::Job::QUEUED, reason, -1, now_ms, {});
+}
+
+StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  struct Expired {
+    std::int64_t id;
+    int attempt;
+    int released;
+    std::string worker_id;
+  };
+  std::vector<Expired> expired;
+  {
+    Stmt find(writer_,
+              "SELECT id, attempt, released, worker_id FROM jobs WHERE state = ? AND lease_expires_ms < ?");
+    find.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms);
+    while (find.step() == SQLITE_ROW) {
+      expired.push_back(
+          {find.int64(0), static_cast<int>(find.int64(1)), static_cast<int>(find.int64(2)), find.text(3)});
+    }
+  }
+  std::vector<v1::Job> changed;
+  for (const Expired& e : expired) {
+    const int counted = e.attempt - e.released;
+    const bool give_up = counted >= options_.max_attempts;
+    const std::string reason =
+        give_up ? "lease of worker " + e.worker_id + " expired; " + std::to_string(counted) +
+                      " attempts reached the limit of " + std::to_string(options_.max_attempts)
+                : "lease of worker " + e.worker_id + " expired (attempt " + std::to_string(e.attempt) + ")";
+    const v1::Job::State state = give_up ? v1::Job::FAILED : v1::Job::QUEUED;
+    Stmt update(
+        writer_,
+        "UPDATE jobs SET state = ?, lease_token = NULL, lease_expires_ms = NULL, reason = ?, "
+        "end_ms = CASE WHEN ? THEN ? ELSE NULL END, fraction_done = 0, remaining_s = -1 WHERE id = ?");
+    update.bind(1, static_cast<int>(state))
+        .bind(2, reason)
+        .bind(3, give_up ? 1 : 0)
+        .bind(4, now_ms)
+        .bind(5, e.id);
+    if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "requeue");
+    auto seq = append_event_row(writer_, e.id, e.attempt, state_event(state, reason, e.worker_id),
+                                std::nullopt, now_ms);
+    if (!seq.ok()) return seq.status();
+    auto job = load_job(writer_, e.id);
+    if (!job.ok()) return job.status();
+    changed.push_back(std::move(*job));
+  }
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return changed;
+}
+
+Status Store::extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_ms) {
+  std::lock_guard lock(write_mutex_);
+  Stmt update(writer_,
+              "UPDATE jobs SET lease_expires_ms = MAX(COALESCE(lease_expires_ms, 0), ?) WHERE state = ?");
+  update.bind(1, now_ms + lease_ttl_ms).bind(2, static_cast<int>(v1::Job::RUNNING));
+  if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "extend leases");
+  return {};
+}
+
+StatusOr<std::vector<v1::Job>> Store::release_all_running(const std::string& reason, std::int64_t now_ms) {
+  std::vector<std::pair<std::int64_t, std::string>> running;
+  {
+    Reader r = reader();
+    Stmt find(r.get(), "SELECT id, lease_token FROM jobs WHERE state = ?");
+    find.bind(1, static_cast<int>(v1::Job::RUNNING));
+    while (find.step() == SQLITE_ROW) running.emplace_back(find.int64(0), find.text(1));
+  }
+  std::vector<v1::Job> changed;
+  for (const auto& [id, token] : running) {
+    auto job = release(id, token, reason, now_ms);
+    if (job.ok()) changed.push_back(std::move(*job));
+  }
+  return changed;
+}
+
+StatusOr<std::vector<v1::JobEvent>> Store::events_after(std::int64_t job_id, std::int64_t after_sequence,
+                                                        int limit) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  Stmt stmt(r.get(), "SELECT payload FROM events WHERE job_id = ? AND seq > ? ORDER BY seq LIMIT ?");
+  stmt.bind(1, job_id).bind(2, after_sequence).bind(3, limit);
+  std::vector<v1::JobEvent> events;
+  int rc;
+  while ((rc = stmt.step()) == SQLITE_ROW) {
+    v1::JobEvent event;
+    if (!event.ParseFromString(stmt.blob(0))) return Status(StatusCode::kInternal, "corrupt event payload");
+    events.push_back(std::move(event));
+  }
+  if (rc != SQLITE_DONE) return sqlite_error(r.get(), "events");
+  return events;
+}
+
+StatusOr<LeaseCheck> Store::check_lease(std::int64_t job_id, const std::string& lease_token) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  return lease_state(r.get(), job_id, lease_token);
+}
+
+}  // namespace cellflow::server

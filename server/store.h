@@ -1,0 +1,160 @@
+// The job queue: one SQLite database in WAL mode, opened by the server alone.
+//
+// Tables: jobs (one row per job, with its lease), events (job_id, seq,
+// attempt, kind, sample_index, payload = a serialized cellflow.v1.JobEvent),
+// schema_version (migrated on open). Every state change is written in one
+// transaction together with its event, so a crash loses nothing that was
+// acknowledged. Writers take BEGIN IMMEDIATE (a deferred transaction that
+// upgrades to a writer ignores the busy timeout).
+//
+// Leases are fenced: a claim writes a fresh random lease token, and every
+// later write of the attempt (heartbeat, event, finish, fail, release)
+// changes the job only WHERE id = ? AND lease_token = ? AND state = RUNNING.
+//
+// Samples: a sample is identified by (job, kind, index). A sample whose
+// index is at most the highest index of that kind already in the job's event
+// log is not appended again, whichever attempt reports it: watchers see each
+// index once, in increasing order. After a retry, indices the first attempt
+// already delivered keep the first attempt's values in the event log; the
+// result file is always the complete output of the attempt that finished.
+//
+// No gRPC here: the store is tested directly (tests/service/store_test.cc).
+// Time comes in as a parameter (milliseconds since the epoch) so tests can
+// drive lease expiry without waiting.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellflow/v1/service.pb.h"
+#include "physics/core/status.h"
+
+struct sqlite3;
+
+namespace cellflow::server {
+
+struct StoreOptions {
+  std::string path;               // the database file; created when missing
+  int busy_timeout_ms = 5000;     // how long a connection waits for a lock
+  int max_attempts = 3;           // leases that may expire before the job FAILS
+  bool synchronous_full = false;  // FULL: survive power loss; NORMAL (default): survive process crashes
+};
+
+// Outcome of a fenced write by a worker.
+enum class LeaseCheck {
+  kValid,      // the job is RUNNING under this token
+  kCancelled,  // the job was cancelled: the worker must stop
+  kLost,       // expired and re-leased, or finished: the worker must stop
+};
+
+struct Claim {
+  v1::Job job;
+  std::string lease_token;
+  int last_delivered_sample_index = -1;
+};
+
+struct ReportOutcome {
+  LeaseCheck lease = LeaseCheck::kLost;
+  std::int64_t sequence = 0;  // the event's sequence; 0 when nothing was appended
+};
+
+class Store {
+ public:
+  static constexpr int kSchemaVersion = 1;
+
+  static StatusOr<std::unique_ptr<Store>> open(const StoreOptions& options);
+  ~Store();
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  int schema_version();
+
+  // Queues a job with its QUEUED event. A non-empty request_id that is
+  // already known returns that job and existed = true.
+  struct Submitted {
+    v1::Job job;
+    bool existed = false;
+  };
+  StatusOr<Submitted> submit(const v1::JobSpec& spec, const std::string& request_id,
+                             std::int64_t estimated_memory_bytes, std::int64_t now_ms);
+
+  StatusOr<v1::Job> get(std::int64_t job_id);
+  // Jobs with id > after_id, oldest first, at most `limit`; state 0 = any.
+  StatusOr<std::vector<v1::Job>> list(std::int64_t after_id, int limit, v1::Job::State state);
+  std::int64_t count(v1::Job::State state);
+
+  // QUEUED or RUNNING -> CANCELLED (clears the lease); a cancelled job is
+  // returned as it is; SUCCEEDED or FAILED gives kFailedPrecondition.
+  StatusOr<v1::Job> cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms);
+
+  // Leases the oldest QUEUED job (attempt + 1, fresh token); nullopt if none.
+  StatusOr<std::optional<Claim>> claim(const std::string& worker_id, std::int64_t now_ms,
+                                       std::int64_t lease_ttl_ms);
+
+  // Renews the lease.
+  StatusOr<LeaseCheck> heartbeat(std::int64_t job_id, const std::string& lease_token, std::int64_t now_ms,
+                                 std::int64_t lease_ttl_ms);
+  // Renews the lease and appends `event` (sequence, attempt and time are set
+  // here). sample_index: set for samples (see the header comment).
+  StatusOr<ReportOutcome> append_event(std::int64_t job_id, const std::string& lease_token,
+                                       v1::JobEvent event, std::optional<int> sample_index,
+                                       std::int64_t now_ms, std::int64_t lease_ttl_ms);
+
+  // RUNNING -> SUCCEEDED / FAILED / QUEUED (released), fenced by the token.
+  // `before_commit` runs inside the transaction once the fence held (e.g. to
+  // move the attempt's result file into place); its error rolls back.
+  // result_size_bytes < 0 keeps the stored size.
+  StatusOr<v1::Job> finish(std::int64_t job_id, const std::string& lease_token,
+                           std::int64_t result_size_bytes, std::int64_t now_ms,
+                           const std::function<Status()>& before_commit = {});
+  StatusOr<v1::Job> fail(std::int64_t job_id, const std::string& lease_token, const std::string& reason,
+                         std::int64_t result_size_bytes, std::int64_t now_ms,
+                         const std::function<Status()>& before_commit = {});
+  // Hands the job back to the queue; the attempt does not count against max_attempts.
+  StatusOr<v1::Job> release(std::int64_t job_id, const std::string& lease_token, const std::string& reason,
+                            std::int64_t now_ms);
+
+  // RUNNING jobs whose lease expired before now_ms go back to QUEUED, or to
+  // FAILED once max_attempts leases have expired. Returns the changed jobs.
+  StatusOr<std::vector<v1::Job>> requeue_expired(std::int64_t now_ms);
+  // On start-up: every running lease expires no sooner than now + ttl, so a
+  // worker that outlived a server restart can still renew it.
+  Status extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_ms);
+  // On shutdown: every RUNNING job back to QUEUED (not counted as an attempt).
+  StatusOr<std::vector<v1::Job>> release_all_running(const std::string& reason, std::int64_t now_ms);
+
+  // Events with sequence > after_sequence, in order, at most `limit`.
+  StatusOr<std::vector<v1::JobEvent>> events_after(std::int64_t job_id, std::int64_t after_sequence,
+                                                   int limit);
+
+  // Lease state as the fence sees it (for acks).
+  StatusOr<LeaseCheck> check_lease(std::int64_t job_id, const std::string& lease_token);
+
+ private:
+  explicit Store(StoreOptions options);
+  Status migrate();
+  // A reader connection from the pool; returned by the guard's destructor.
+  class Reader;
+  Reader reader();
+
+  StoreOptions options_;
+  std::mutex write_mutex_;  // one writer connection, one writer at a time
+  sqlite3* writer_ = nullptr;
+  std::mutex readers_mutex_;
+  std::vector<sqlite3*> idle_readers_;
+  std::uint64_t token_counter_ = 0;
+  std::uint64_t token_seed_[2] = {0, 0};
+};
+
+// "job-42" <-> 42. Accepts a bare "42" too.
+std::string job_name(std::int64_t id);
+std::optional<std::int64_t> parse_job_name(const std::string& name);
+
+bool is_terminal(v1::Job::State state);
+
+}  // namespace cellflow::server

@@ -1,0 +1,107 @@
+#include "spec/shear_flow/shear_flow_spec.h"
+
+#include <string>
+
+namespace cellflow::spec {
+namespace {
+
+// Defaults of unset optional fields that the proto documents.
+constexpr double kDefaultPoissonRatio = 0.48;
+constexpr double kDefaultMooneyRivlinW = 1.0;
+constexpr double kDefaultDensity = 1e3;     // water, kg/m^3 (paper section 7.1)
+constexpr double kDefaultViscosity = 1e-3;  // water, Pa s (paper section 7.1)
+
+elastic::Material to_material(const v1::MaterialSpec& m) {
+  elastic::Material material;
+  material.youngs_modulus_pa = m.youngs_modulus_pa();
+  material.poisson_ratio = m.has_poisson_ratio() ? m.poisson_ratio() : kDefaultPoissonRatio;
+  material.mooney_rivlin_w = m.has_mooney_rivlin_w() ? m.mooney_rivlin_w() : kDefaultMooneyRivlinW;
+  return material;
+}
+
+// CellSpec -> CellParams with the flow's default mesh size (the same mapping
+// as spec/job_spec.cc otherwise).
+scenes::CellParams to_cell(const v1::CellSpec& c) {
+  scenes::CellParams cell = scenes::flow_cell_defaults();
+  cell.radius_m = c.radius_m();
+  cell.material = to_material(c.material());
+  if (c.has_nucleus()) {
+    cell.nucleus = scenes::NucleusParams{c.nucleus().radius_m(), to_material(c.nucleus().material())};
+  }
+  if (c.has_target_vertex_count()) cell.target_vertex_count = c.target_vertex_count();
+  cell.mesh_file = c.mesh_file();
+  return cell;
+}
+
+}  // namespace
+
+StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
+  const std::string prefix(field_prefix);
+  if (!spec.has_cell()) return invalid_argument(prefix + "cell must be set");
+  if (!spec.cell().has_material()) return invalid_argument(prefix + "cell.material must be set");
+  scenes::ShearFlowParams params;
+  params.cell = to_cell(spec.cell());
+  if (spec.has_fluid_density_kg_m3()) {
+    params.fluid_density_kg_m3 = spec.fluid_density_kg_m3();
+  } else {
+    params.fluid_density_kg_m3 = kDefaultDensity;
+  }
+  if (spec.has_fluid_viscosity_pa_s()) {
+    params.fluid_viscosity_pa_s = spec.fluid_viscosity_pa_s();
+  } else {
+    params.fluid_viscosity_pa_s = kDefaultViscosity;
+  }
+  switch (spec.drive_case()) {
+    case v1::ShearFlowSpec::kShearRatePerS:
+      params.shear_rate_per_s = spec.shear_rate_per_s();
+      // An explicit 0 reads as "set": say so rather than "set one of".
+      if (params.shear_rate_per_s == 0.0)
+        return invalid_argument(prefix + "shear_rate_per_s = 0 must be > 0");
+      break;
+    case v1::ShearFlowSpec::kCapillaryNumber:
+      params.capillary_number = spec.capillary_number();
+      if (params.capillary_number == 0.0)
+        return invalid_argument(prefix + "capillary_number = 0 must be > 0");
+      break;
+    case v1::ShearFlowSpec::DRIVE_NOT_SET:
+      return invalid_argument("set one of " + prefix + "shear_rate_per_s (> 0) or " + prefix +
+                              "capillary_number (> 0)");
+  }
+
+  const v1::ShearFlowNumerics& in = spec.numerics();
+  scenes::ShearFlowNumerics& n = params.numerics;  // holds the defaults
+  if (in.has_cells_per_radius()) n.cells_per_radius = in.cells_per_radius();
+  if (in.has_box_x_radii()) n.box_x_radii = in.box_x_radii();
+  if (in.has_box_y_radii()) n.box_y_radii = in.box_y_radii();
+  if (in.has_box_z_radii()) n.box_z_radii = in.box_z_radii();
+  if (in.has_relaxation_time()) n.relaxation_time = in.relaxation_time();
+  if (in.has_max_mach()) n.max_mach = in.max_mach();
+  if (in.has_max_time_s()) n.max_time_s = in.max_time_s();
+  if (in.has_steady_tolerance()) n.steady_tolerance = in.steady_tolerance();
+  if (in.has_steady_window_strain()) n.steady_window_strain = in.steady_window_strain();
+  if (in.has_ibm_kernel()) {
+    StatusOr<ibm::Kernel> kernel = ibm::parse_kernel(in.ibm_kernel(), prefix + "numerics.ibm_kernel");
+    if (!kernel.ok()) return kernel.status();
+    n.ibm_kernel = *kernel;
+  }
+  if (in.has_single_precision()) n.single_precision = in.single_precision();
+  if (in.has_sample_every_strain()) n.sample_every_strain = in.sample_every_strain();
+  if (in.has_snapshot_every_strain()) n.snapshot_every_strain = in.snapshot_every_strain();
+  if (in.has_fluid_snapshots()) n.fluid_snapshots = in.fluid_snapshots();
+  if (in.has_memory_limit_bytes()) n.memory_limit_bytes = in.memory_limit_bytes();
+  if (in.has_target_reynolds_number()) n.target_reynolds_number = in.target_reynolds_number();
+  if (in.has_max_strain()) n.max_strain = in.max_strain();
+  if (in.has_max_stiffness_ratio()) n.max_stiffness_ratio = in.max_stiffness_ratio();
+
+  // Fields, ranges, Mach number and memory; the stability check needs the
+  // mesh and runs at the start of run_shear_flow.
+  const StatusOr<scenes::ShearFlowSetup> plan = scenes::plan_shear_flow(params, field_prefix);
+  if (!plan.ok()) return plan.status();
+  return params;
+}
+
+Status validate(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
+  return to_params(spec, field_prefix).status();
+}
+
+}  // namespace cellflow::spec

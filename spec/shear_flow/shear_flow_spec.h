@@ -1,0 +1,24 @@
+// The edge between the protobuf ShearFlowSpec (proto/cellflow/v1/shear_flow.proto)
+// and scenes::ShearFlowParams: unset optional fields take the scene's
+// documented defaults, and every field is validated here, once, with messages
+// naming the field path (prefix "shear_flow.") and its allowed range.
+#pragma once
+
+#include <string_view>
+
+#include "cellflow/v1/shear_flow.pb.h"
+#include "physics/core/status.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
+
+namespace cellflow::spec {
+
+// Converts and validates (fields, ranges, the IBM kernel name, the Mach
+// number and the lattice memory: everything that needs no mesh).
+// kInvalidArgument / kResourceExhausted name the field.
+StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec,
+                                            std::string_view field_prefix = "shear_flow.");
+
+// to_params(spec).status(): what the job validation calls before queueing.
+Status validate(const v1::ShearFlowSpec& spec, std::string_view field_prefix = "shear_flow.");
+
+}  // namespace cellflow::spec

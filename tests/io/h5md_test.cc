@@ -1,0 +1,212 @@
+// H5MD writer and XDMF sidecar: round trip, layout checked with h5dump,
+// XDMF checked with xmllint, and a writer killed after a flush.
+#include "physics/io/h5md.h"
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "physics/io/xdmf.h"
+
+namespace cellflow::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string run_command(const std::string& command, int* exit_code) {
+  std::string output;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) {
+    *exit_code = -1;
+    return output;
+  }
+  char buffer[4096];
+  std::size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, n);
+  const int status = pclose(pipe);
+  *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return output;
+}
+
+class H5mdTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("cellflow_io_test_" + std::to_string(getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Two tetrahedra sharing a face; five vertices.
+  static std::vector<double> reference() {
+    return {0, 0, 0, 1e-6, 0, 0, 0, 1e-6, 0, 0, 0, 1e-6, 1e-6, 1e-6, 1e-6};
+  }
+  static std::vector<std::int32_t> tets() { return {0, 1, 2, 3, 1, 2, 3, 4}; }
+
+  // Writes three frames and a curve of `points` records; returns the path.
+  std::string write_example(int points) {
+    const std::string path = (dir_ / "job.h5").string();
+    H5mdCreator creator;
+    creator.time_unit = "1 (deformation)";
+    auto writer = H5mdWriter::create(path, creator);
+    EXPECT_TRUE(writer.ok()) << writer.status().to_string();
+    const std::vector<std::uint8_t> region = {0, 1};
+    EXPECT_TRUE((*writer)->write_tetrahedra("cell", tets(), region).ok());
+    EXPECT_TRUE((*writer)->write_parameters_json(R"({"compression":{"maxDeformation":0.2}})").ok());
+    std::vector<double> x = reference();
+    EXPECT_TRUE((*writer)->append_positions("cell", 0, 0.0, x).ok());
+    for (int i = 0; i < points; ++i) {
+      const double deformation = 0.01 * (i + 1);
+      EXPECT_TRUE((*writer)->append_observable("force_n", i + 1, deformation, 1e-9 * (i + 1) * (i + 1)).ok());
+      EXPECT_TRUE((*writer)->append_observable("deformation", i + 1, deformation, deformation).ok());
+      const std::vector<double> axes = {1e-6 - i * 1e-8, 1e-6, 1e-6 + i * 1e-8};
+      EXPECT_TRUE((*writer)->append_observable("semi_axes_m", i + 1, deformation, axes).ok());
+      if (i == points / 2 || i == points - 1) {
+        for (double& v : x) v *= 1.0 + deformation;
+        EXPECT_TRUE((*writer)->append_positions("cell", i + 1, deformation, x).ok());
+      }
+      EXPECT_TRUE((*writer)->flush().ok());
+    }
+    EXPECT_TRUE((*writer)->close().ok());
+    return path;
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(H5mdTest, RoundTripIsExact) {
+  const std::string path = write_example(6);
+  auto force = read_observable(path, "force_n");
+  ASSERT_TRUE(force.ok()) << force.status().to_string();
+  ASSERT_EQ(force->step.size(), 6u);
+  EXPECT_EQ(force->width, 1);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_EQ(force->step[i], i + 1);
+    EXPECT_EQ(force->time[i], 0.01 * (i + 1));  // bit-exact: doubles stored as IEEE f64
+    EXPECT_EQ(force->value[i], 1e-9 * (i + 1) * (i + 1));
+  }
+  auto axes = read_observable(path, "semi_axes_m");
+  ASSERT_TRUE(axes.ok());
+  EXPECT_EQ(axes->width, 3);
+  EXPECT_EQ(axes->value[3 * 5 + 2], 1e-6 + 5 * 1e-8);
+  auto names = list_observables(path);
+  ASSERT_TRUE(names.ok());
+  EXPECT_EQ(*names, (std::vector<std::string>{"deformation", "force_n", "semi_axes_m"}));
+  auto json = read_parameters_json(path);
+  ASSERT_TRUE(json.ok());
+  EXPECT_EQ(*json, R"({"compression":{"maxDeformation":0.2}})");
+  auto frames = count_position_frames(path, "cell");
+  ASSERT_TRUE(frames.ok());
+  EXPECT_EQ(*frames, 3);
+  auto last = read_position_frame(path, "cell", 2);
+  ASSERT_TRUE(last.ok());
+  EXPECT_EQ(last->step, 6);
+  ASSERT_EQ(last->positions_m.size(), 15u);
+  EXPECT_DOUBLE_EQ(last->positions_m[3], 1e-6 * 1.04 * 1.06);  // scaled at points 3 and 6, rel. 4 ulp
+}
+
+TEST_F(H5mdTest, WidthMismatchIsRejected) {
+  auto writer = H5mdWriter::create((dir_ / "w.h5").string());
+  ASSERT_TRUE(writer.ok());
+  const std::vector<double> two = {1.0, 2.0};
+  ASSERT_TRUE((*writer)->append_observable("a", 0, 0.0, two).ok());
+  EXPECT_EQ((*writer)->append_observable("a", 1, 1.0, 3.0).code(), StatusCode::kInvalidArgument);
+}
+
+TEST_F(H5mdTest, H5dumpShowsTheH5mdLayout) {
+  const std::string path = write_example(4);
+  int code = 0;
+  const std::string header = run_command(std::string(CELLFLOW_H5DUMP) + " -H " + path, &code);
+  ASSERT_EQ(code, 0) << header;
+  for (const char* needle :
+       {"GROUP \"h5md\"", "GROUP \"author\"", "GROUP \"creator\"", "GROUP \"particles\"", "GROUP \"cell\"",
+        "GROUP \"box\"", "GROUP \"position\"", "DATASET \"step\"", "DATASET \"time\"", "DATASET \"value\"",
+        "GROUP \"observables\"", "GROUP \"force_n\"", "GROUP \"connectivity\"", "GROUP \"parameters\"",
+        "DATASET \"job_spec_json\""}) {
+    EXPECT_NE(header.find(needle), std::string::npos) << "missing " << needle;
+  }
+  const std::string version = run_command(std::string(CELLFLOW_H5DUMP) + " -a /h5md/version " + path, &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_NE(version.find("1, 1"), std::string::npos) << version;
+  const std::string value =
+      run_command(std::string(CELLFLOW_H5DUMP) + " -H -d /particles/cell/position/value " + path, &code);
+  ASSERT_EQ(code, 0);
+  EXPECT_NE(value.find("( 3, 5, 3 )"), std::string::npos) << value;
+}
+
+TEST_F(H5mdTest, XdmfIsValidXmlNamingExistingDatasets) {
+  const std::string path = write_example(4);
+  const std::string xdmf = (dir_ / "job.xdmf").string();
+  ASSERT_TRUE(write_xdmf(path, xdmf).ok());
+  int code = 0;
+  const std::string lint = run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + xdmf, &code);
+  EXPECT_EQ(code, 0) << lint;
+
+  std::ifstream in(xdmf);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string xml = text.str();
+  EXPECT_EQ(xml.find("HyperSlab"), std::string::npos);
+  const std::regex item(R"(>job\.h5:(/[^<]+)</DataItem>)");
+  hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  int items = 0;
+  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), item); it != std::sregex_iterator(); ++it) {
+    const std::string dataset = (*it)[1];
+    ++items;
+    EXPECT_GT(H5Oexists_by_name(file, dataset.c_str(), H5P_DEFAULT), 0) << dataset;
+  }
+  H5Fclose(file);
+  // 3 frames x (topology, geometry, region).
+  EXPECT_EQ(items, 9);
+  const std::regex grid(R"(GridType="Uniform")");
+  EXPECT_EQ(std::distance(std::sregex_iterator(xml.begin(), xml.end(), grid), std::sregex_iterator()), 3);
+}
+
+TEST_F(H5mdTest, KilledWriterLeavesReadableFile) {
+  const std::string path = (dir_ / "killed.h5").string();
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    auto writer = H5mdWriter::create(path);
+    if (!writer.ok()) _exit(10);
+    const std::vector<std::int32_t> t = tets();
+    if (!(*writer)->write_tetrahedra("cell", t, {}).ok()) _exit(11);
+    const std::vector<double> x = reference();
+    for (int i = 0; i < 5; ++i) {
+      if (!(*writer)->append_observable("force_n", i, i, 0.5 * i).ok()) _exit(12);
+      if (!(*writer)->append_positions("cell", i, i, x).ok()) _exit(13);
+      if (!(*writer)->flush().ok()) _exit(14);
+    }
+    // Unflushed work, then death without closing.
+    (void)(*writer)->append_observable("force_n", 5, 5, 2.5);
+    raise(SIGKILL);
+    _exit(15);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "child exited with " << WEXITSTATUS(status);
+  auto force = read_observable(path, "force_n");
+  ASSERT_TRUE(force.ok()) << force.status().to_string();
+  ASSERT_GE(force->step.size(), 5u);
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(force->value[i], 0.5 * i);
+  auto frames = count_position_frames(path, "cell");
+  ASSERT_TRUE(frames.ok());
+  EXPECT_EQ(*frames, 5);
+  int code = 0;
+  run_command(std::string(CELLFLOW_H5DUMP) + " -H " + path, &code);
+  EXPECT_EQ(code, 0);
+}
+
+}  // namespace
+}  // namespace cellflow::io

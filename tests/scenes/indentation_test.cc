@@ -1,0 +1,71 @@
+// Colloidal-probe indentation of a cell resting on a plate: the force against
+// the two-contact Hertz law at small indentation, a monotone curve, the probe
+// force balanced by the plate.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "physics/scenes/quasi_static.h"
+
+namespace cellflow::scenes {
+namespace {
+
+// The hydrogel particle of paper section 5.2 (Neubauer et al.): Rc = 40 um,
+// probe Rp = 26.5 um.
+IndentationParams particle(int vertices, double max_indentation_radii, int load_points) {
+  IndentationParams p;
+  p.cell.radius_m = 40e-6;
+  p.cell.material = {.youngs_modulus_pa = 1000.0, .poisson_ratio = 0.48, .mooney_rivlin_w = 1.0};
+  p.cell.target_vertex_count = vertices;
+  p.probe_radius_m = 26.5e-6;
+  p.max_indentation_m = max_indentation_radii * p.cell.radius_m;
+  p.load_points = load_points;
+  p.numerics.threads = 1;
+  return p;
+}
+
+// F / F_Hertz(probe) on the default mesh at indentations 0.04 R ... 0.2 R.
+// Measured: 1.87, 1.51, 1.39, 1.34, 1.32. At 0.04 R the top contact radius
+// sqrt(R12 d_top) ~ 0.1 R is below the mean edge (0.14 R): one or two
+// vertices carry the probe; from 0.12 R on the ratio settles at the same
+// excess as compression on this mesh (faceting and locking of linear tets at
+// nu = 0.48, see compression_test.cc). Asserted: the ratio falls
+// monotonically towards 1 and lies in [1.25, 1.45] once the contact spans a
+// vertex ring (indentation >= 0.12 R).
+TEST(Indentation, ForceAgainstHertzAtSmallIndentation) {
+  const QuasiStaticResult r = run_indentation(particle(3000, 0.2, 5));
+  ASSERT_TRUE(r.status.ok()) << r.status.to_string();
+  ASSERT_EQ(r.curve.size(), 5u);
+  double previous = 1e9;
+  for (const CurvePoint& p : r.curve) {
+    const double ratio = p.force_n / p.hertz_force_n;
+    std::printf("indentation %.3f R: F/F_Hertz %.4f\n", p.displacement_m / 40e-6, ratio);
+    EXPECT_GT(ratio, 1.0);
+    EXPECT_LT(ratio, previous);
+    previous = ratio;
+    if (p.displacement_m >= 0.12 * 40e-6 - 1e-12) {
+      EXPECT_GE(ratio, 1.25);
+      EXPECT_LE(ratio, 1.45);
+    }
+  }
+}
+
+TEST(Indentation, CurveIsMonotoneAndBalanced) {
+  const QuasiStaticResult r = run_indentation(particle(800, 0.6, 6));
+  ASSERT_TRUE(r.status.ok()) << r.status.to_string();
+  ASSERT_EQ(r.curve.size(), 6u);
+  for (std::size_t i = 1; i < r.curve.size(); ++i) {
+    EXPECT_GT(r.curve[i].force_n, r.curve[i - 1].force_n) << "point " << i;
+    EXPECT_GT(r.curve[i].elastic_energy_j, r.curve[i - 1].elastic_energy_j);
+    EXPECT_GT(r.curve[i].hertz_force_n, r.curve[i - 1].hertz_force_n);
+  }
+  for (const CurvePoint& p : r.curve) {
+    EXPECT_LE(p.residual, 1e-6);
+    EXPECT_LT(p.max_penetration_m, 5e-3 * 40e-6);
+    EXPECT_NEAR(p.deformation, p.displacement_m / 80e-6, 1e-15);
+  }
+}
+
+}  // namespace
+}  // namespace cellflow::scenes

@@ -1,0 +1,131 @@
+// The CLI's output helpers: CSV round-trips doubles, the SVG plot is
+// well-formed XML with axes, ticks, labels and legend, nice ticks cover the
+// range, and watch lines are stable text.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "client/curve_output.h"
+#include "client/exit_codes.h"
+#include "client/watch_printer.h"
+#include "physics/io/h5md.h"
+
+namespace cellflow::client {
+namespace {
+
+namespace fs = std::filesystem;
+
+Curve make_curve() {
+  Curve curve;
+  curve.columns = {"point", "deformation", "force_n", "hertz_force_n"};
+  curve.integer_columns = {true, false, false, false};
+  for (int i = 0; i < 5; ++i) {
+    const double eps = 0.03 * (i + 1);
+    // F = (4/3) E* R^2 eps^1.5 with E* = 1333 Pa, R = 5 um, scaled by 1.1 for the "simulation"
+    const double hertz = 4.0 / 3.0 * 1333.0 * 25e-12 * std::pow(eps, 1.5);
+    curve.rows.push_back({static_cast<double>(i), eps, 1.1 * hertz, hertz});
+  }
+  return curve;
+}
+
+TEST(CurveOutput, CsvRoundTripsDoubles) {
+  const Curve curve = make_curve();
+  const std::string csv = curve_csv(curve);
+  EXPECT_EQ(csv.substr(0, csv.find('\n')), "point,deformation,force_n,hertz_force_n");
+  std::istringstream lines(csv);
+  std::string line;
+  std::getline(lines, line);
+  for (const auto& row : curve.rows) {
+    ASSERT_TRUE(std::getline(lines, line));
+    std::istringstream fields(line);
+    std::string field;
+    for (double expected : row) {
+      ASSERT_TRUE(std::getline(fields, field, ','));
+      EXPECT_EQ(std::strtod(field.c_str(), nullptr), expected);  // exact: 17 significant digits
+    }
+  }
+  EXPECT_EQ(csv.find("\n0,"), csv.find('\n'));  // the point index is written as an integer
+}
+
+TEST(CurveOutput, NiceTicksCoverTheRangeInRoundSteps) {
+  const auto ticks = nice_ticks(0.0, 0.15);
+  ASSERT_GE(ticks.size(), 4u);
+  EXPECT_EQ(ticks.front(), 0.0);
+  EXPECT_GE(ticks.back(), 0.15 - 1e-12);
+  const double step = ticks[1] - ticks[0];
+  // Six ticks wanted: raw step 0.15 / 5 = 0.03; the smallest 1-2-5 step >= 0.03 is 0.05.
+  EXPECT_NEAR(step, 0.05, 1e-15);
+  EXPECT_EQ(ticks.size(), 4u);
+}
+
+TEST(CurveOutput, SvgIsWellFormedWithAxesLabelsAndLegend) {
+  const std::string svg = curve_svg(make_curve(), "job-1 (compression)");
+  for (const char* needle : {"<svg", "</svg>", "deformation", "force (", "simulation", "Hertz", "polyline",
+                             "stroke-dasharray", "job-1 (compression)"}) {
+    EXPECT_NE(svg.find(needle), std::string::npos) << needle;
+  }
+  const fs::path path = fs::temp_directory_path() / ("cellflow_plot_" + std::to_string(getpid()) + ".svg");
+  std::ofstream(path) << svg;
+  const std::string command = "xmllint --noout " + path.string() + " 2>&1";
+  EXPECT_EQ(std::system(command.c_str()), 0);
+  fs::remove(path);
+}
+
+TEST(CurveOutput, ReadsTheCurveOfAResultFile) {
+  const fs::path path = fs::temp_directory_path() / ("cellflow_curve_" + std::to_string(getpid()) + ".h5");
+  {
+    auto writer = io::H5mdWriter::create(path.string());
+    ASSERT_TRUE(writer.ok());
+    for (int i = 0; i < 3; ++i) {
+      ASSERT_TRUE((*writer)->append_observable("deformation", i + 1, 0.1 * i, 0.1 * i).ok());
+      ASSERT_TRUE((*writer)->append_observable("force_n", i + 1, 0.1 * i, 1e-9 * i).ok());
+      const double axes[3] = {1.0 * i, 2.0 * i, 3.0 * i};
+      ASSERT_TRUE((*writer)->append_observable("semi_axes_m", i + 1, 0.1 * i, axes).ok());
+    }
+  }
+  auto curve = read_curve(path.string());
+  ASSERT_TRUE(curve.ok()) << curve.status().to_string();
+  // cellflow-run's column order; only the columns the file can fill.
+  EXPECT_EQ(curve->columns,
+            (std::vector<std::string>{"point", "deformation", "force_n", "a1_m", "a2_m", "a3_m"}));
+  ASSERT_EQ(curve->rows.size(), 3u);
+  EXPECT_EQ(curve->rows[2][0], 2.0);
+  EXPECT_EQ(curve->rows[2][2], 2e-9);
+  EXPECT_EQ(curve->rows[2][5], 6.0);
+  fs::remove(path);
+}
+
+TEST(WatchPrinter, LinesAreStableKeyValueText) {
+  v1::JobEvent event;
+  event.set_sequence(7);
+  event.set_attempt(2);
+  event.mutable_force_sample()->set_index(3);
+  event.mutable_force_sample()->set_deformation(0.04);
+  event.mutable_force_sample()->set_force_n(1.5e-9);
+  EXPECT_EQ(event_line(event).rfind("seq=7 attempt=2 sample index=3 deformation=0.04 ", 0), 0u)
+      << event_line(event);
+  EXPECT_NE(event_line(event).find("force_n=1.500000e-09"), std::string::npos);
+  v1::JobEvent state;
+  state.set_sequence(8);
+  state.mutable_state_change()->set_state(v1::Job::FAILED);
+  state.mutable_state_change()->set_reason("load point 3: J <= 0");
+  EXPECT_EQ(event_line(state), "seq=8 attempt=0 state FAILED reason=\"load point 3: J <= 0\"");
+  EXPECT_EQ(progress_bar(0.5, 75, "load point 2/4", 10), "[#####.....]  50%  ETA 1:15  load point 2/4");
+}
+
+TEST(ExitCodes, MatchTheDocumentedTable) {
+  EXPECT_EQ(exit_code_for(grpc::Status::OK), 0);
+  EXPECT_EQ(exit_code_for(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "")), 2);
+  EXPECT_EQ(exit_code_for(grpc::Status(grpc::StatusCode::NOT_FOUND, "")), 5);
+  EXPECT_EQ(exit_code_for(grpc::Status(grpc::StatusCode::UNAVAILABLE, "")), 6);
+  EXPECT_EQ(exit_code_for(v1::Job::SUCCEEDED), 0);
+  EXPECT_EQ(exit_code_for(v1::Job::FAILED), 3);
+  EXPECT_EQ(exit_code_for(v1::Job::CANCELLED), 4);
+}
+
+}  // namespace
+}  // namespace cellflow::client

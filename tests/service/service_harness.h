@@ -1,0 +1,231 @@
+// Integration-test harness: real cellflow-server and cellflow-worker
+// processes on 127.0.0.1 with an ephemeral port and a SQLite file in a
+// temporary directory. Executable paths come from CMake (compile definitions).
+#pragma once
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "client/rpc_client.h"
+
+namespace cellflow::testing {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+// A child process with stdout and stderr in `log_path`.
+class Process {
+ public:
+  Process(const std::vector<std::string>& argv, const std::string& log_path) : log_path_(log_path) {
+    std::vector<std::string> args = argv;
+    std::vector<char*> raw;
+    for (auto& a : args) raw.push_back(a.data());
+    raw.push_back(nullptr);
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      if (fd >= 0) {
+        ::dup2(fd, STDOUT_FILENO);
+        ::dup2(fd, STDERR_FILENO);
+      }
+      ::execv(raw[0], raw.data());
+      ::_exit(127);
+    }
+  }
+  ~Process() {
+    if (running()) {
+      ::kill(pid_, SIGKILL);
+      wait();
+    }
+  }
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  pid_t pid() const { return pid_; }
+  bool running() {
+    if (exited_) return false;
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+      exited_ = true;
+      status_ = status;
+      return false;
+    }
+    return true;
+  }
+  void signal(int number) { ::kill(pid_, number); }
+  // Waits for the exit; returns the raw wait status.
+  int wait() {
+    if (!exited_) {
+      ::waitpid(pid_, &status_, 0);
+      exited_ = true;
+    }
+    return status_;
+  }
+  // Waits up to `timeout`; true if it exited.
+  bool wait_for(std::chrono::milliseconds timeout) {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < end) {
+      if (!running()) return true;
+      std::this_thread::sleep_for(10ms);
+    }
+    return !running();
+  }
+  std::string log() const {
+    std::ifstream in(log_path_);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  }
+
+ private:
+  pid_t pid_ = -1;
+  std::string log_path_;
+  bool exited_ = false;
+  int status_ = 0;
+};
+
+// Polls `condition` every 20 ms until true or the timeout; returns its last value.
+inline bool eventually(const std::function<bool()>& condition, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < end) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(20ms);
+  }
+  return condition();
+}
+
+// Runs a command, returns its output (stdout and stderr) and exit code.
+inline std::string run_command(const std::string& command, int* exit_code) {
+  std::string output;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) {
+    *exit_code = -1;
+    return output;
+  }
+  char buffer[4096];
+  std::size_t n;
+  while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, n);
+  const int status = ::pclose(pipe);
+  *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return output;
+}
+
+class ServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("cellflow_service_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+
+  void TearDown() override {
+    if (HasFailure()) {
+      if (server_) std::fprintf(stderr, "---- server log ----\n%s\n", server_->log().c_str());
+      for (std::size_t i = 0; i < workers_.size(); ++i) {
+        std::fprintf(stderr, "---- worker %zu log ----\n%s\n", i, workers_[i]->log().c_str());
+      }
+    }
+    workers_.clear();
+    server_.reset();
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+
+  // Starts the server on `port` (0: ephemeral) with `workers` local workers.
+  void start_server(int workers, std::vector<std::string> extra = {}, int port = 0) {
+    const std::string port_file = (dir_ / "port").string();
+    fs::remove(port_file);
+    std::vector<std::string> argv = {CELLFLOW_SERVER_EXE,
+                                     "--listen",
+                                     "127.0.0.1:" + std::to_string(port),
+                                     "--data-dir",
+                                     (dir_ / "data").string(),
+                                     "--port-file",
+                                     port_file,
+                                     "--workers",
+                                     std::to_string(workers),
+                                     "--worker-path",
+                                     CELLFLOW_WORKER_EXE,
+                                     "--log-level",
+                                     "debug"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    server_ = std::make_unique<Process>(argv, (dir_ / "server.log").string());
+    ASSERT_TRUE(eventually([&] { return fs::exists(port_file); }, 20s)) << server_->log();
+    std::ifstream in(port_file);
+    in >> port_;
+    ASSERT_GT(port_, 0);
+    address_ = "127.0.0.1:" + std::to_string(port_);
+    client::ClientOptions options;
+    options.server = address_;
+    options.timeout_s = 10;
+    options.reconnect_s = 30;
+    client_ = std::make_unique<client::Client>(options);
+  }
+
+  Process* start_worker(std::vector<std::string> extra = {}) {
+    std::vector<std::string> argv = {CELLFLOW_WORKER_EXE, "--server", address_, "--log-level", "debug"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    workers_.push_back(std::make_unique<Process>(
+        argv, (dir_ / ("worker" + std::to_string(workers_.size()) + ".log")).string()));
+    return workers_.back().get();
+  }
+
+  v1::Job get(const std::string& id) {
+    v1::Job job;
+    const grpc::Status status = client_->get(id, &job);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return job;
+  }
+
+  bool wait_state(const std::string& id, v1::Job::State state, std::chrono::milliseconds timeout) {
+    return eventually([&] { return get(id).state() == state; }, timeout);
+  }
+
+  std::string submit(const v1::JobSpec& spec, const std::string& request_id = "") {
+    v1::SubmitJobRequest request;
+    *request.mutable_spec() = spec;
+    request.set_request_id(request_id);
+    v1::SubmitJobResponse response;
+    const grpc::Status status = client_->submit(request, &response);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return response.job().id();
+  }
+
+  fs::path dir_;
+  std::unique_ptr<Process> server_;
+  std::vector<std::unique_ptr<Process>> workers_;
+  int port_ = 0;
+  std::string address_;
+  std::unique_ptr<client::Client> client_;
+};
+
+// A small compression job: a few hundred vertices and few load points, so
+// that one run takes well under a second.
+inline v1::JobSpec small_compression(int load_points = 5, int vertices = 300) {
+  v1::JobSpec spec;
+  spec.set_name("small compression");
+  auto* c = spec.mutable_compression();
+  c->mutable_cell()->set_radius_m(5e-6);
+  c->mutable_cell()->mutable_material()->set_youngs_modulus_pa(1000.0);
+  c->mutable_cell()->mutable_material()->set_poisson_ratio(0.45);
+  c->mutable_cell()->set_target_vertex_count(vertices);
+  c->set_max_deformation(0.15);
+  c->set_load_points(load_points);
+  return spec;
+}
+
+}  // namespace cellflow::testing

@@ -1,0 +1,244 @@
+// The immersed-boundary coupling of the shear-flow scene
+// (physics/scenes/shear_flow/immersed_cell.h): a force-free cell in a fluid at
+// rest stays at rest; spreading the elastic forces of a deformed cell puts
+// exactly their total force and torque into the fluid; the local clearing of
+// the force field leaves no stale force behind.
+#include "physics/scenes/shear_flow/immersed_cell.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "physics/elastic/elastic_body.h"
+#include "physics/lb/fluid.h"
+#include "physics/mesh/sphere_mesh.h"
+#include "physics/units/units.h"
+
+namespace cellflow::scenes {
+namespace {
+
+constexpr double kRadius = 6e-6;  // m
+constexpr int kBox = 24;          // lattice nodes per direction
+
+units::Units test_units() {
+  units::LatticeChoice choice;
+  choice.cell_radius_m = kRadius;
+  choice.cells_per_radius = 4.0;
+  StatusOr<units::Units> u = units::make_units(choice);
+  EXPECT_TRUE(u.ok()) << u.status().to_string();
+  return u.value();
+}
+
+struct Cell {
+  mesh::TetMesh mesh;
+  elastic::ElasticBody body;
+};
+
+Cell make_cell(int vertices) {
+  mesh::SphereMeshOptions options;
+  options.radius_m = kRadius;
+  options.target_vertex_count = vertices;
+  StatusOr<mesh::TetMesh> m = mesh::make_sphere_mesh(options);
+  EXPECT_TRUE(m.ok()) << m.status().to_string();
+  elastic::Material material;
+  material.youngs_modulus_pa = 100.0;
+  material.poisson_ratio = 0.48;
+  const elastic::Material materials[2] = {material, material};
+  StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(*m, materials);
+  EXPECT_TRUE(body.ok()) << body.status().to_string();
+  return {std::move(*m), std::move(*body)};
+}
+
+lb::Fluid make_test_fluid(lb::Precision precision) {
+  lb::FluidParams p;
+  p.nx = p.ny = p.nz = kBox;
+  p.tau = 1.0;
+  p.walls_y = true;  // walls at rest
+  p.force_field = true;
+  p.velocity_field = true;
+  p.precision = precision;
+  StatusOr<lb::Fluid> f = lb::make_fluid(p);
+  EXPECT_TRUE(f.ok()) << f.status().to_string();
+  return std::move(*f);
+}
+
+class RestTest : public ::testing::TestWithParam<lb::Precision> {};
+
+// A stress-free cell in a fluid at rest: the coupled update must not move it.
+// The elastic forces at the reference configuration are round-off (~1e-16 of
+// mu R^2); after 300 steps every vertex must still be within 1e-10 lattice
+// spacings of where it started.
+TEST_P(RestTest, ForceFreeCellInFluidAtRestStaysAtRest) {
+  const Cell cell = make_cell(400);
+  const units::Units u = test_units();
+  lb::Fluid fluid = make_test_fluid(GetParam());
+  const double centre[3] = {0.5 * kBox, 0.5 * kBox, 0.5 * kBox};
+  ImmersedCell immersed = make_immersed_cell(cell.mesh, u, centre);
+  const std::vector<double> start = immersed.positions_lattice;
+  lb::update_velocity_field(fluid);
+  double max_force = 0.0;
+  for (int step = 0; step < 300; ++step) {
+    const elastic::ElasticEvaluation eval = compute_elastic_forces(immersed, cell.body, 1);
+    ASSERT_LT(eval.first_inverted_tet, 0);
+    for (double f : immersed.forces_lattice) max_force = std::max(max_force, std::abs(f));
+    spread_cell_forces(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+    lb::collide_stream(fluid);
+    const AdvectReport report = advect_cell(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+    ASSERT_TRUE(std::isfinite(report.max_speed_lattice));
+  }
+  double max_displacement = 0.0;
+  for (std::size_t i = 0; i < start.size(); ++i) {
+    max_displacement = std::max(max_displacement, std::abs(immersed.positions_lattice[i] - start[i]));
+  }
+  EXPECT_LT(max_displacement, 1e-10) << "largest elastic force at rest " << max_force << " (lattice units)";
+}
+
+INSTANTIATE_TEST_SUITE_P(Precisions, RestTest,
+                         ::testing::Values(lb::Precision::kDouble, lb::Precision::kFloat));
+
+// Deforms the cell: an affine stretch with shear plus a deterministic
+// per-vertex perturbation of 0.05 lattice spacings.
+void deform(ImmersedCell& cell) {
+  const std::size_t nv = cell.positions_lattice.size() / 3;
+  for (std::size_t v = 0; v < nv; ++v) {
+    double* x = &cell.positions_lattice[3 * v];
+    const double r[3] = {x[0] - cell.origin_lattice[0], x[1] - cell.origin_lattice[1],
+                         x[2] - cell.origin_lattice[2]};
+    x[0] = cell.origin_lattice[0] + 1.2 * r[0] + 0.1 * r[1] + 0.05 * std::sin(1.0 + 3.0 * v);
+    x[1] = cell.origin_lattice[1] + 0.9 * r[1] + 0.05 * std::sin(2.0 + 5.0 * v);
+    x[2] = cell.origin_lattice[2] + 0.95 * r[2] + 0.05 * std::sin(3.0 + 7.0 * v);
+  }
+}
+
+struct Moments {
+  std::array<double, 3> force{0, 0, 0};
+  std::array<double, 3> torque{0, 0, 0};  // about the box centre
+  double force_scale = 0.0;               // sum |F|
+  double torque_scale = 0.0;              // sum |r| |F|
+};
+
+void add_moment(Moments& m, const double r[3], const double f[3]) {
+  for (int d = 0; d < 3; ++d) m.force[d] += f[d];
+  // tau = r x f
+  m.torque[0] += r[1] * f[2] - r[2] * f[1];
+  m.torque[1] += r[2] * f[0] - r[0] * f[2];
+  m.torque[2] += r[0] * f[1] - r[1] * f[0];
+  const double fn = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+  m.force_scale += fn;
+  m.torque_scale += std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]) * fn;
+}
+
+Moments point_moments(const ImmersedCell& cell, const double centre[3]) {
+  Moments m;
+  for (std::size_t v = 0; v < cell.positions_lattice.size() / 3; ++v) {
+    const double r[3] = {cell.positions_lattice[3 * v] - centre[0],
+                         cell.positions_lattice[3 * v + 1] - centre[1],
+                         cell.positions_lattice[3 * v + 2] - centre[2]};
+    add_moment(m, r, &cell.forces_lattice[3 * v]);
+  }
+  return m;
+}
+
+Moments field_moments(lb::Fluid& fluid, const double centre[3]) {
+  Moments m;
+  const lb::VectorField<double> f = fluid.force_field<double>();
+  for (int k = 0; k < fluid.nz(); ++k) {
+    for (int j = 0; j < fluid.ny(); ++j) {
+      for (int i = 0; i < fluid.nx(); ++i) {
+        const std::size_t n = fluid.node(i, j, k);
+        // node (i, j, k) sits at (i + 1/2, j + 1/2, k + 1/2)
+        const double r[3] = {i + 0.5 - centre[0], j + 0.5 - centre[1], k + 0.5 - centre[2]};
+        const double force[3] = {f.x[n], f.y[n], f.z[n]};
+        add_moment(m, r, force);
+      }
+    }
+  }
+  return m;
+}
+
+void expect_same_moments(const Moments& lattice, const Moments& points) {
+  for (int d = 0; d < 3; ++d) {
+    EXPECT_NEAR(lattice.force[d], points.force[d], 1e-12 * points.force_scale) << "force component " << d;
+    EXPECT_NEAR(lattice.torque[d], points.torque[d], 1e-12 * points.torque_scale) << "torque component " << d;
+  }
+}
+
+// Peskin kernels have unit zeroth and vanishing first moments, so the lattice
+// receives the total force and the total torque of the vertex forces, to
+// round-off. Checked for the balanced elastic forces of a deformed cell
+// (total ~0) and for an unbalanced half of them (total nonzero).
+TEST(ImmersedCell, SpreadingConservesTotalForceAndTorque) {
+  const Cell cell = make_cell(1000);
+  const units::Units u = test_units();
+  for (const ibm::Kernel kernel : {ibm::Kernel::kPeskin4, ibm::Kernel::kPeskin3, ibm::Kernel::kTrilinear}) {
+    SCOPED_TRACE(std::string(ibm::kernel_name(kernel)));
+    lb::Fluid fluid = make_test_fluid(lb::Precision::kDouble);
+    const double centre[3] = {0.5 * kBox + 0.3, 0.5 * kBox - 0.2, 0.5 * kBox + 0.1};
+    ImmersedCell immersed = make_immersed_cell(cell.mesh, u, centre);
+    deform(immersed);
+    const elastic::ElasticEvaluation eval = compute_elastic_forces(immersed, cell.body, 1);
+    ASSERT_LT(eval.first_inverted_tet, 0);
+    ASSERT_GT(eval.energy_j, 0.0);
+
+    const Moments points = point_moments(immersed, centre);
+    ASSERT_GT(points.force_scale, 0.0);
+    spread_cell_forces(immersed, fluid, kernel, 1);
+    expect_same_moments(field_moments(fluid, centre), points);
+
+    // Unbalanced: only the vertices with x above the centre push.
+    for (std::size_t v = 0; v < immersed.positions_lattice.size() / 3; ++v) {
+      if (immersed.positions_lattice[3 * v] < centre[0]) {
+        for (int d = 0; d < 3; ++d) immersed.forces_lattice[3 * v + d] = 0.0;
+      }
+    }
+    const Moments half = point_moments(immersed, centre);
+    EXPECT_GT(std::abs(half.force[0]) + std::abs(half.force[1]) + std::abs(half.force[2]),
+              0.1 * half.force_scale / 1000);
+    spread_cell_forces(immersed, fluid, kernel, 1);  // clears the previous spread first
+    expect_same_moments(field_moments(fluid, centre), half);
+  }
+}
+
+// spread_cell_forces clears only the nodes the previous spread touched: after
+// the cell has moved, the field must equal a spread onto a cleared lattice.
+TEST(ImmersedCell, LocalClearingLeavesNoStaleForce) {
+  const Cell cell = make_cell(400);
+  const units::Units u = test_units();
+  lb::Fluid fluid = make_test_fluid(lb::Precision::kDouble);
+  lb::Fluid reference = make_test_fluid(lb::Precision::kDouble);
+  // Near the periodic x boundary so that the cleared box wraps around.
+  const double centre[3] = {2.5, 0.5 * kBox, 0.5 * kBox};
+  ImmersedCell immersed = make_immersed_cell(cell.mesh, u, centre);
+  deform(immersed);
+  ASSERT_LT(compute_elastic_forces(immersed, cell.body, 1).first_inverted_tet, 0);
+  spread_cell_forces(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+  // Move by 1.7 spacings in x and 0.6 in y, recompute, spread again.
+  for (std::size_t v = 0; v < immersed.positions_lattice.size() / 3; ++v) {
+    immersed.positions_lattice[3 * v] += 1.7;
+    immersed.positions_lattice[3 * v + 1] += 0.6;
+  }
+  immersed.origin_lattice[0] += 1.7;
+  immersed.origin_lattice[1] += 0.6;
+  ASSERT_LT(compute_elastic_forces(immersed, cell.body, 1).first_inverted_tet, 0);
+  spread_cell_forces(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+
+  ImmersedCell fresh = immersed;
+  fresh.last_support = NodeBox{};
+  lb::zero_force_field(reference);
+  spread_cell_forces(fresh, reference, ibm::Kernel::kPeskin4, 1);
+  const lb::VectorField<double> a = fluid.force_field<double>();
+  const lb::VectorField<double> b = reference.force_field<double>();
+  double max_difference = 0.0, max_force = 0.0;
+  for (std::size_t n = 0; n < fluid.num_nodes(); ++n) {
+    max_difference = std::max(
+        {max_difference, std::abs(a.x[n] - b.x[n]), std::abs(a.y[n] - b.y[n]), std::abs(a.z[n] - b.z[n])});
+    max_force = std::max({max_force, std::abs(b.x[n]), std::abs(b.y[n]), std::abs(b.z[n])});
+  }
+  ASSERT_GT(max_force, 0.0);
+  EXPECT_EQ(max_difference, 0.0);
+}
+
+}  // namespace
+}  // namespace cellflow::scenes

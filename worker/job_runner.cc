@@ -1,0 +1,208 @@
+#include "worker/job_runner.h"
+
+#include <chrono>
+#include <map>
+#include <memory>
+#include <optional>
+#include <thread>
+#include <vector>
+
+#include "physics/io/h5md.h"
+#include "spec/job_spec.h"
+
+namespace cellflow::worker {
+
+namespace {
+
+// Writes one quasi-static run: the mesh, chosen position frames and every
+// curve point. Frames are kept for the reference state, every k-th load point
+// and the last computed point (also when the run stops early).
+class QuasiStaticRecorder {
+ public:
+  QuasiStaticRecorder(io::H5mdWriter* writer, int load_points, int frames, const JobEvents& events,
+                      int debug_delay_ms)
+      : writer_(writer), load_points_(load_points), events_(events), debug_delay_ms_(debug_delay_ms) {
+    const int wanted = std::max(frames, 1);
+    every_ = std::max(1, (load_points + wanted - 1) / wanted);
+  }
+
+  scenes::SceneCallbacks callbacks() {
+    scenes::SceneCallbacks cb;
+    cb.on_mesh = [this](const mesh::TetMesh& mesh) { on_mesh(mesh); };
+    cb.on_positions = [this](int index, std::span<const double> x) { on_positions(index, x); };
+    cb.on_point = [this](const scenes::CurvePoint& point) { on_point(point); };
+    cb.on_progress = [this](double fraction) {
+      if (events_.progress) {
+        events_.progress(fraction,
+                         "load point " + std::to_string(points_) + "/" + std::to_string(load_points_));
+      }
+    };
+    cb.should_stop = [this] { return events_.should_stop && events_.should_stop(); };
+    return cb;
+  }
+
+  // Writes the last computed state if it is not a frame yet; closes the file.
+  Status finish() {
+    if (last_index_ >= 0 && last_written_index_ != last_index_) {
+      auto found = deformation_.find(last_index_);
+      const double time = found != deformation_.end() ? found->second : 0.0;
+      keep(writer_->append_positions("cell", last_index_ + 1, time, last_positions_));
+    }
+    keep(writer_->close());
+    return status_;
+  }
+
+  int points() const { return points_; }
+
+ private:
+  void keep(Status s) {
+    if (status_.ok() && !s.ok()) status_ = std::move(s);
+  }
+
+  bool chosen(int index) const { return (index + 1) % every_ == 0 || index == load_points_ - 1; }
+
+  void on_mesh(const mesh::TetMesh& mesh) {
+    std::vector<std::uint8_t> region(mesh.tet_region.size());
+    for (std::size_t i = 0; i < region.size(); ++i) region[i] = static_cast<std::uint8_t>(mesh.tet_region[i]);
+    keep(writer_->write_tetrahedra("cell", mesh.tets, region));
+    // Step 0, "time" (the load parameter, deformation) 0: the reference state.
+    keep(writer_->append_positions("cell", 0, 0.0, mesh.positions_m));
+    keep(writer_->flush());
+  }
+
+  void on_positions(int index, std::span<const double> positions_m) {
+    last_positions_.assign(positions_m.begin(), positions_m.end());
+    last_index_ = index;
+    // The point's deformation may arrive before or after its positions.
+    if (chosen(index) && deformation_.count(index) != 0) write_frame(index);
+  }
+
+  void on_point(const scenes::CurvePoint& point) {
+    const std::int64_t step = point.index + 1;
+    const double time = point.deformation;
+    deformation_[point.index] = point.deformation;
+    auto put = [&](const char* name, double value) {
+      keep(writer_->append_observable(name, step, time, value));
+    };
+    put("deformation", point.deformation);
+    put("displacement_m", point.displacement_m);
+    put("force_n", point.force_n);
+    put("hertz_force_n", point.hertz_force_n);
+    put("taylor_deformation", point.taylor_deformation);
+    keep(
+        writer_->append_observable("semi_axes_m", step, time, std::span<const double>(point.semi_axes_m, 3)));
+    put("volume_m3", point.volume_m3);
+    put("elastic_energy_j", point.elastic_energy_j);
+    put("max_penetration_m", point.max_penetration_m);
+    put("newton_iterations", point.newton_iterations);
+    put("cg_iterations", point.cg_iterations);
+    put("step_splits", point.step_splits);
+    put("residual", point.residual);
+    if (last_index_ == point.index && chosen(point.index) && last_written_index_ != point.index) {
+      write_frame(point.index);
+    }
+    keep(writer_->flush());  // a killed job leaves every reported point readable
+    ++points_;
+    if (events_.force_sample) events_.force_sample(force_sample_from(point));
+    delay();
+  }
+
+  void write_frame(int index) {
+    keep(writer_->append_positions("cell", index + 1, deformation_[index], last_positions_));
+    last_written_index_ = index;
+  }
+
+  // Testing aid: a pause in 10 ms slices that ends early on should_stop.
+  void delay() {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(debug_delay_ms_);
+    while (std::chrono::steady_clock::now() < end) {
+      if (events_.should_stop && events_.should_stop()) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+
+  io::H5mdWriter* writer_;
+  int load_points_;
+  int every_ = 1;
+  const JobEvents& events_;
+  int debug_delay_ms_;
+  std::map<int, double> deformation_;
+  std::vector<double> last_positions_;
+  int last_index_ = -1;
+  int last_written_index_ = -1;
+  int points_ = 0;
+  Status status_;
+};
+
+template <class Params>
+RunOutcome run_quasi_static(const v1::JobSpec& spec, Params params, const RunOptions& options,
+                            const JobEvents& events,
+                            scenes::QuasiStaticResult (*scene)(const Params&,
+                                                               const scenes::SceneCallbacks&)) {
+  RunOutcome outcome;
+  if (options.threads > 0) params.numerics.threads = options.threads;
+  io::H5mdCreator creator;
+  creator.program_version = options.program_version;
+  creator.time_unit = "1 (deformation: the load parameter of a quasi-static curve)";
+  auto writer = io::H5mdWriter::create(options.result_path, creator);
+  if (!writer.ok()) {
+    outcome.status = writer.status();
+    return outcome;
+  }
+  if (Status s = (*writer)->write_parameters_json(spec::job_spec_to_json(spec)); !s.ok()) {
+    outcome.status = s;
+    return outcome;
+  }
+  QuasiStaticRecorder recorder(writer->get(), params.load_points, options.position_frames, events,
+                               options.debug_delay_per_point_ms);
+  if (events.progress) events.progress(0.0, "meshing");
+  scenes::QuasiStaticResult result = scene(params, recorder.callbacks());
+  Status written = recorder.finish();
+  outcome.samples = recorder.points();
+  outcome.result_written = written.ok();
+  outcome.status = !result.status.ok() ? result.status : written;
+  return outcome;
+}
+
+}  // namespace
+
+v1::ForceSample force_sample_from(const scenes::CurvePoint& point) {
+  v1::ForceSample sample;
+  sample.set_index(point.index);
+  sample.set_deformation(point.deformation);
+  sample.set_displacement_m(point.displacement_m);
+  sample.set_force_n(point.force_n);
+  sample.set_hertz_force_n(point.hertz_force_n);
+  sample.set_taylor_deformation(point.taylor_deformation);
+  for (double a : point.semi_axes_m) sample.add_semi_axes_m(a);
+  sample.set_volume_m3(point.volume_m3);
+  sample.set_elastic_energy_j(point.elastic_energy_j);
+  sample.set_max_penetration_m(point.max_penetration_m);
+  sample.set_newton_iterations(point.newton_iterations);
+  sample.set_cg_iterations(point.cg_iterations);
+  sample.set_step_splits(point.step_splits);
+  sample.set_residual(point.residual);
+  return sample;
+}
+
+RunOutcome run_job(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) {
+  switch (spec.scene_case()) {
+    case v1::JobSpec::kCompression: {
+      auto params = spec::to_params(spec.compression());
+      if (!params.ok()) return {params.status()};
+      return run_quasi_static(spec, std::move(*params), options, events, &scenes::run_compression);
+    }
+    case v1::JobSpec::kIndentation: {
+      auto params = spec::to_params(spec.indentation());
+      if (!params.ok()) return {params.status()};
+      return run_quasi_static(spec, std::move(*params), options, events, &scenes::run_indentation);
+    }
+    case v1::JobSpec::kShearFlow:
+      return {Status(StatusCode::kFailedPrecondition, "shear_flow: this worker has no shear-flow scene yet")};
+    case v1::JobSpec::SCENE_NOT_SET:
+      break;
+  }
+  return {invalid_argument("scene: the job spec names no scene")};
+}
+
+}  // namespace cellflow::worker

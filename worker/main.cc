@@ -1,0 +1,52 @@
+// cellflow-worker: see worker/worker.h and deploy/README.md.
+#include <pthread.h>
+#include <signal.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdlib>
+#include <thread>
+
+#include "worker/worker.h"
+
+int main(int argc, char** argv) {
+  cellflow::worker::WorkerOptions options;
+  if (const char* env = std::getenv("CELLFLOW_SERVER")) options.server_address = env;
+  std::string log_level = "info";
+  CLI::App app{"cellflow-worker: runs cellflow jobs leased from a cellflow-server"};
+  app.add_option("--server", options.server_address, "server address host:port (env CELLFLOW_SERVER)")
+      ->capture_default_str();
+  app.add_option("--name", options.name, "worker name; the worker id is name@host:pid")
+      ->capture_default_str();
+  app.add_option("--scratch-dir", options.scratch_dir, "where results are written before upload");
+  app.add_option("--max-jobs", options.max_jobs, "exit after this many jobs (0: no limit)")
+      ->capture_default_str();
+  app.add_option("--idle-exit-s", options.idle_exit_s, "exit after this long without a job (0: never)")
+      ->capture_default_str();
+  app.add_option("--threads", options.threads, "OpenMP threads for the physics (0: default)")
+      ->capture_default_str();
+  app.add_option("--debug-delay-per-point-ms", options.debug_delay_per_point_ms,
+                 "testing aid: pause after each load point")
+      ->capture_default_str();
+  app.add_flag("--keep-results", options.keep_results, "keep the local copy of uploaded results");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_level(spdlog::level::from_str(log_level));
+
+  // SIGTERM/SIGINT: stop the running job, hand it back, exit 0. The signals
+  // are blocked in every thread and taken by sigwait in one.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  cellflow::worker::Worker worker(options);
+  std::thread([&worker, signals] {
+    int received = 0;
+    sigwait(&signals, &received);
+    spdlog::info("signal {}: stopping", received);
+    worker.stop();
+  }).detach();
+  return worker.run();
+}

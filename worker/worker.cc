@@ -1,0 +1,270 @@
+#include "worker/worker.h"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+#include <vector>
+
+#include "worker/job_runner.h"
+#include "worker/reporter.h"
+
+namespace cellflow::worker {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::string host_name() {
+  char buffer[256] = {0};
+  if (::gethostname(buffer, sizeof buffer - 1) != 0) return "localhost";
+  return buffer;
+}
+
+std::chrono::milliseconds seconds_to_ms(double s, std::chrono::milliseconds fallback) {
+  return s > 0 ? std::chrono::milliseconds(static_cast<std::int64_t>(s * 1000)) : fallback;
+}
+
+bool retryable(const grpc::Status& status) {
+  return status.error_code() == grpc::StatusCode::UNAVAILABLE;
+}
+
+}  // namespace
+
+Worker::Worker(WorkerOptions options) : options_(std::move(options)) {
+  id_ = options_.name + "@" + host_name() + ":" + std::to_string(::getpid());
+  if (options_.scratch_dir.empty()) {
+    options_.scratch_dir =
+        (fs::temp_directory_path() / ("cellflow-worker-" + std::to_string(::getpid()))).string();
+  }
+  grpc::ChannelArguments args;
+  // Reconnect quickly after a server restart.
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+  stub_ = v1::WorkerService::NewStub(
+      grpc::CreateCustomChannel(options_.server_address, grpc::InsecureChannelCredentials(), args));
+}
+
+bool Worker::sleep_unless_stopped(std::chrono::milliseconds duration) {
+  const auto end = Clock::now() + duration;
+  while (Clock::now() < end) {
+    if (stop_.load()) return false;
+    std::this_thread::sleep_for(std::min<std::chrono::milliseconds>(50ms, duration));
+  }
+  return !stop_.load();
+}
+
+int Worker::run() {
+  std::error_code error;
+  fs::create_directories(options_.scratch_dir, error);
+  if (error) {
+    spdlog::error("cannot create scratch directory {}: {}", options_.scratch_dir, error.message());
+    return 1;
+  }
+  spdlog::info("worker {} serving {} (scratch {})", id_, options_.server_address, options_.scratch_dir);
+  int attempts = 0;
+  auto idle_since = Clock::now();
+  auto backoff = 100ms;
+  while (!stop_.load()) {
+    if (options_.max_jobs > 0 && attempts >= options_.max_jobs) break;
+    if (options_.idle_exit_s > 0 && Clock::now() - idle_since > seconds_to_ms(options_.idle_exit_s, 0ms)) {
+      spdlog::info("idle for {} s; exiting", options_.idle_exit_s);
+      break;
+    }
+    v1::LeaseJobRequest request;
+    request.set_worker_id(id_);
+    // Short polls so that a stop request is seen within a second.
+    request.set_wait_s(std::min(options_.lease_wait_s, 1.0));
+    v1::LeaseJobResponse response;
+    grpc::ClientContext context;
+    const auto asked = Clock::now();
+    context.set_deadline(std::chrono::system_clock::now() + seconds_to_ms(request.wait_s() + 10.0, 10s));
+    const grpc::Status status = stub_->LeaseJob(&context, request, &response);
+    if (!status.ok()) {
+      if (status.error_code() != grpc::StatusCode::UNAVAILABLE &&
+          status.error_code() != grpc::StatusCode::DEADLINE_EXCEEDED) {
+        spdlog::error("LeaseJob: {} ({})", status.error_message(), static_cast<int>(status.error_code()));
+      }
+      sleep_unless_stopped(backoff);
+      backoff = std::min(backoff * 2, std::chrono::milliseconds(5000));
+      continue;
+    }
+    backoff = 100ms;
+    if (!response.found()) {
+      // A server that answers at once (it is shutting down) is not polled in a tight loop.
+      if (Clock::now() - asked < 100ms) sleep_unless_stopped(250ms);
+      continue;
+    }
+    ++attempts;
+    run_attempt(response);
+    idle_since = Clock::now();
+  }
+  spdlog::info("worker {} stopped after {} attempt(s)", id_, attempts);
+  std::error_code ignored;
+  if (!options_.keep_results) fs::remove(options_.scratch_dir, ignored);  // only if empty
+  return 0;
+}
+
+void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
+  const v1::Lease& lease = leased.lease();
+  const std::string& job = lease.job_id();
+  spdlog::info("{}: attempt {}{}", job, lease.attempt(),
+               leased.spec().name().empty() ? "" : " \"" + leased.spec().name() + "\"");
+  const auto ttl = seconds_to_ms(leased.lease_ttl_s(), 10s);
+  Reporter reporter(*stub_, lease, seconds_to_ms(leased.heartbeat_interval_s(), 250ms), ttl);
+  reporter.start();
+
+  const auto started = Clock::now();
+  auto last_progress = Clock::now() - 1h;
+  double last_fraction = -1.0;
+  JobEvents events;
+  events.force_sample = [&](const v1::ForceSample& sample) {
+    v1::WorkerReport report;
+    *report.mutable_force_sample() = sample;
+    reporter.send(std::move(report));
+  };
+  events.deformation_sample = [&](const v1::DeformationSample& sample) {
+    v1::WorkerReport report;
+    *report.mutable_deformation_sample() = sample;
+    reporter.send(std::move(report));
+  };
+  events.progress = [&](double fraction, const std::string& stage) {
+    // At most five progress reports a second; the first and the last always.
+    const auto now = Clock::now();
+    if (fraction == last_fraction) return;
+    if (now - last_progress < 200ms && fraction < 1.0 && fraction > 0.0) return;
+    last_progress = now;
+    last_fraction = fraction;
+    const double elapsed = std::chrono::duration<double>(now - started).count();
+    v1::WorkerReport report;
+    auto* progress = report.mutable_progress();
+    progress->set_fraction_done(fraction);
+    progress->set_elapsed_s(elapsed);
+    // Remaining time from the rate so far; unknown (-1) before the first progress.
+    progress->set_estimated_remaining_s(fraction > 0.0 ? elapsed * (1.0 - fraction) / fraction : -1.0);
+    progress->set_stage(stage);
+    reporter.send(std::move(report));
+  };
+  events.should_stop = [&] { return reporter.should_stop() || stop_.load(); };
+
+  const std::string stem = job + ".attempt-" + std::to_string(lease.attempt());
+  const fs::path temporary = fs::path(options_.scratch_dir) / (stem + ".h5.tmp");
+  const fs::path result = fs::path(options_.scratch_dir) / (stem + ".h5");
+  RunOptions run_options;
+  run_options.result_path = temporary.string();
+  run_options.threads = options_.threads;
+  run_options.debug_delay_per_point_ms = options_.debug_delay_per_point_ms;
+  const RunOutcome outcome = run_job(leased.spec(), run_options, events);
+
+  // Every sample reaches the server before the attempt ends.
+  reporter.close(ttl);
+  std::error_code ignored;
+  auto cleanup = [&] {
+    fs::remove(temporary, ignored);
+    if (!options_.keep_results) fs::remove(result, ignored);
+  };
+  if (reporter.cancelled()) {
+    spdlog::info("{}: cancelled; stopped after {} sample(s)", job, outcome.samples);
+    cleanup();
+    return;
+  }
+  if (reporter.lease_lost()) {
+    spdlog::warn("{}: lease lost; abandoning attempt {}", job, lease.attempt());
+    cleanup();
+    return;
+  }
+  if (stop_.load() && outcome.status.code() == StatusCode::kCancelled) {
+    v1::ReleaseJobRequest request;
+    *request.mutable_lease() = lease;
+    request.set_reason("worker " + id_ + " stopped");
+    v1::FinishJobResponse response;
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + 5s);
+    const grpc::Status status = stub_->ReleaseJob(&context, request, &response);
+    spdlog::info("{}: handed back ({})", job, status.ok() ? "ok" : status.error_message());
+    cleanup();
+    return;
+  }
+
+  // Upload the result (also the partial one of a failed run), then end the attempt.
+  const bool have_file = outcome.result_written || (!outcome.status.ok() && fs::exists(temporary, ignored));
+  if (have_file) fs::rename(temporary, result, ignored);
+  auto upload = [&]() -> grpc::Status {
+    std::ifstream in(result, std::ios::binary);
+    if (!in) return {grpc::StatusCode::NOT_FOUND, "no result file"};
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + 10min);
+    v1::UploadResultResponse response;
+    auto writer = stub_->UploadResult(&context, &response);
+    std::vector<char> buffer(1 << 20);
+    std::int64_t offset = 0;
+    bool first = true;
+    while (in || first) {
+      in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      const std::streamsize n = in.gcount();
+      if (n == 0 && !first) break;
+      v1::UploadChunk chunk;
+      if (first) *chunk.mutable_lease() = lease;
+      first = false;
+      chunk.set_offset(offset);
+      chunk.set_data(buffer.data(), static_cast<std::size_t>(n));
+      if (!writer->Write(chunk)) break;
+      offset += n;
+    }
+    writer->WritesDone();
+    return writer->Finish();
+  };
+  // Calls `rpc` until it succeeds or fails for a reason other than UNAVAILABLE,
+  // for at most the lease time.
+  auto with_retry = [&](const std::function<grpc::Status()>& rpc) {
+    const auto give_up = Clock::now() + ttl;
+    auto wait = 100ms;
+    grpc::Status status;
+    while (true) {
+      status = rpc();
+      if (status.ok() || !retryable(status) || Clock::now() > give_up) return status;
+      std::this_thread::sleep_for(wait);
+      wait = std::min(wait * 2, std::chrono::milliseconds(2000));
+    }
+  };
+  auto end_call = [&](auto method, const auto& request) {
+    return with_retry([&] {
+      v1::FinishJobResponse response;
+      grpc::ClientContext context;
+      context.set_deadline(std::chrono::system_clock::now() + 30s);
+      return ((*stub_).*method)(&context, request, &response);
+    });
+  };
+
+  grpc::Status uploaded =
+      have_file ? with_retry(upload) : grpc::Status(grpc::StatusCode::NOT_FOUND, "no result");
+  if (outcome.status.ok()) {
+    if (!uploaded.ok()) spdlog::error("{}: upload failed: {}", job, uploaded.error_message());
+    v1::FinishJobRequest request;
+    *request.mutable_lease() = lease;
+    grpc::Status finished = end_call(&v1::WorkerService::Stub::FinishJob, request);
+    if (finished.error_code() == grpc::StatusCode::FAILED_PRECONDITION &&
+        finished.error_message().find("no result uploaded") != std::string::npos) {
+      // The upload was lost (e.g. across a server restart): once more.
+      if (with_retry(upload).ok()) finished = end_call(&v1::WorkerService::Stub::FinishJob, request);
+    }
+    spdlog::info("{}: finished {} ({} sample(s), {:.2f} s)", job,
+                 finished.ok() ? "ok" : finished.error_message(), outcome.samples,
+                 std::chrono::duration<double>(Clock::now() - started).count());
+  } else {
+    v1::FailJobRequest request;
+    *request.mutable_lease() = lease;
+    request.set_reason(outcome.status.to_string());
+    const grpc::Status failed = end_call(&v1::WorkerService::Stub::FailJob, request);
+    spdlog::warn("{}: failed: {} (reported: {})", job, outcome.status.to_string(),
+                 failed.ok() ? "ok" : failed.error_message());
+  }
+  cleanup();
+}
+
+}  // namespace cellflow::worker

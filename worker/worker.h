@@ -1,0 +1,46 @@
+// cellflow-worker: leases one job at a time from the server, runs it
+// (worker/job_runner.h), streams its samples, progress and heartbeats
+// (worker/reporter.h), uploads the HDF5 result and finishes the attempt with
+// its lease token. It shares nothing with the server but the address.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <string>
+
+#include "cellflow/v1/worker.grpc.pb.h"
+
+namespace cellflow::worker {
+
+struct WorkerOptions {
+  std::string server_address = "127.0.0.1:50051";
+  std::string name = "worker";       // worker id = name@host:pid
+  std::string scratch_dir;           // where results are written; default: $TMPDIR/cellflow-worker-<pid>
+  double lease_wait_s = 10.0;        // long-poll time of one LeaseJob call
+  int max_jobs = 0;                  // exit after this many attempts; 0: no limit
+  double idle_exit_s = 0.0;          // exit after this long without a job; 0: never
+  int threads = 0;                   // OpenMP threads for the physics; 0: default
+  int debug_delay_per_point_ms = 0;  // testing aid, see RunOptions
+  bool keep_results = false;         // keep the local copy of uploaded results
+};
+
+class Worker {
+ public:
+  explicit Worker(WorkerOptions options);
+  // Runs until stop() or the max_jobs / idle_exit_s limits; returns the exit code.
+  int run();
+  // Asks the worker to stop: a running job is handed back to the queue. Thread-safe.
+  void stop() { stop_.store(true); }
+  const std::string& id() const { return id_; }
+
+ private:
+  void run_attempt(const v1::LeaseJobResponse& lease);
+  bool sleep_unless_stopped(std::chrono::milliseconds duration);
+
+  WorkerOptions options_;
+  std::string id_;
+  std::unique_ptr<v1::WorkerService::Stub> stub_;
+  std::atomic<bool> stop_{false};
+};
+
+}  // namespace cellflow::worker

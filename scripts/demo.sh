@@ -13,13 +13,13 @@ out=${CELLFLOW_DEMO_DIR:-demo-out}
 mkdir -p "$out"
 data_dir=$(mktemp -d)
 port_file="$data_dir/port"
-"$build_dir/server/cellflow-server" --listen 127.0.0.1:0 --port-file "$port_file" \
+"$build_dir/bin/cellflow-server" --listen 127.0.0.1:0 --port-file "$port_file" \
   --data-dir "$data_dir" --workers 2 --log-level warn &
 server_pid=$!
 trap 'kill -TERM $server_pid 2>/dev/null || true; wait $server_pid 2>/dev/null || true; rm -rf "$data_dir"' EXIT
 for _ in $(seq 100); do [ -s "$port_file" ] && break; sleep 0.1; done
 export CELLFLOW_SERVER="127.0.0.1:$(cat "$port_file")"
-client="$build_dir/client/cellflow"
+client="$build_dir/bin/cellflow"
 
 echo "== submitting examples/compression.json to $CELLFLOW_SERVER"
 job=$("$client" submit --spec examples/compression.json)

@@ -58,6 +58,7 @@ ShearFlowParams sweep_params(double ca) {
   p.cell.material.poisson_ratio = 0.48;
   p.capillary_number = ca;
   p.numerics.max_strain = 30.0;
+  p.numerics.threads = 1;  // beside other tests on a shared machine
   return p;  // default numerics and mesh otherwise
 }
 

@@ -46,4 +46,11 @@ RunOutcome run_job(const v1::JobSpec& spec, const RunOptions& options, const Job
 // A curve point as the sample message of the API.
 v1::ForceSample force_sample_from(const scenes::CurvePoint& point);
 
+// The observables a quasi-static result holds, in the column order of
+// `cellflow result --csv` (after "point"); semi_axes_m is 3 wide.
+inline constexpr const char* kCurveObservables[] = {
+    "deformation",   "displacement_m", "force_n",          "hertz_force_n",     "taylor_deformation",
+    "semi_axes_m",   "volume_m3",      "elastic_energy_j", "max_penetration_m", "newton_iterations",
+    "cg_iterations", "step_splits",    "residual"};
+
 }  // namespace cellflow::worker

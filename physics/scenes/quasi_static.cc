@@ -146,7 +146,8 @@ QuasiStaticResult run_load_points(Setup& setup, const CellParams& cell, const Qu
                                   const SceneCallbacks& callbacks, Measure measure) {
   QuasiStaticResult result;
   if (callbacks.on_mesh) callbacks.on_mesh(setup.mesh);
-  solver::EquilibriumSolver solver(setup.body, setup.surface_vertices, solver_options(numerics, cell));
+  solver::EquilibriumSolver solver(setup.body, setup.surface_vertices, setup.mesh.positions_m,
+                                   solver_options(numerics, cell));
   solver::LoadPath path(solver, std::move(obstacles), setup.mesh.positions_m, 0.0);
   const double diameter = 2.0 * cell.radius_m;
   for (int i = 0; i < load_points; ++i) {

@@ -8,8 +8,6 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
-#include <cstdio>
-#include <cstdlib>
 
 namespace cellflow::solver {
 
@@ -23,6 +21,10 @@ constexpr double kArmijo = 1e-4;
 constexpr double kEnergyRoundoff = 1e-11;
 // Smallest Levenberg-Marquardt damping (relative to diag K); below it, none.
 constexpr double kMinDamping = 1e-6;
+// First damping after CG met negative curvature.
+constexpr double kNegativeCurvatureDamping = 1e-3;
+// Solves per Newton iteration (each with more damping) before giving up.
+constexpr int kMaxAttempts = 10;
 
 constexpr std::int64_t kMinParallelDofs = 6000;
 
@@ -47,13 +49,17 @@ struct EquilibriumSolver::Preconditioning {
 };
 
 EquilibriumSolver::EquilibriumSolver(const elastic::ElasticBody& body,
-                                     std::vector<std::int32_t> contact_vertices, EquilibriumOptions options)
+                                     std::vector<std::int32_t> contact_vertices,
+                                     std::span<const double> reference_positions_m,
+                                     EquilibriumOptions options)
     : body_(&body),
+      reference_positions_(reference_positions_m.begin(), reference_positions_m.end()),
       contact_vertices_(std::move(contact_vertices)),
       options_(options),
       tangent_(body),
       preconditioning_(std::make_unique<Preconditioning>()) {
   tangent_.set_threads(options_.threads);
+  build_rigid_modes(reference_positions_.data());
   // Slots of the diagonal 3x3 blocks in K's values: column 3v+j holds the
   // rows of v's neighbours (v among them) in sorted order.
   const Eigen::SparseMatrix<double>& k = tangent_.stiffness();
@@ -143,12 +149,7 @@ double EquilibriumSolver::residual(const contact::Obstacles& obstacles, const do
   double energy;
   EquilibriumReport scratch;
   if (!evaluate_forces(obstacles, positions_m, f, energy, scratch)) return kInfinity;
-  // Rigid modes of this configuration, without touching the solver's state.
-  auto* self = const_cast<EquilibriumSolver*>(this);
-  const std::vector<Eigen::VectorXd> saved = rigid_modes_;
-  self->build_rigid_modes(positions_m);
   project(f);
-  self->rigid_modes_ = saved;
   if (forces_n) forces_n->assign(f.data(), f.data() + f.size());
   return f.norm() / options_.force_scale_n;
 }
@@ -164,7 +165,8 @@ void EquilibriumSolver::build_rigid_modes(const double* y) {
       rigid_modes_.push_back(mode.normalized());
     }
   }
-  // infinitesimal rotations about the axes through the vertex mean c: e_a x (y - c)
+  // infinitesimal rotations about the axes through the vertex mean c of the
+  // reference: e_a x (X - c)
   double centre[3] = {0.0, 0.0, 0.0};
   for (std::size_t v = 0; v < nv; ++v) {
     for (int a = 0; a < 3; ++a) centre[a] += y[3 * v + a];
@@ -366,6 +368,15 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
   EquilibriumReport report;
   const Eigen::Index n = static_cast<Eigen::Index>(3 * body_->num_vertices);
   Eigen::Map<Eigen::VectorXd> y(positions_m.data(), n);
+  // The held modes are a linear constraint on the displacement from the
+  // reference, Q^T (y - X) = 0; every correction lies in its null space, so
+  // the equilibrium found is the unique constrained one, whatever the path.
+  {
+    Eigen::VectorXd displacement = y - Eigen::Map<const Eigen::VectorXd>(reference_positions_.data(), n);
+    Eigen::VectorXd held = displacement;
+    project(displacement);
+    y -= held - displacement;
+  }
   Eigen::VectorXd forces, trial_forces, dx, trial(n);
   double energy = 0.0;
   if (!evaluate_forces(obstacles, y.data(), forces, energy, report)) {
@@ -377,7 +388,6 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
     report.residual = kInfinity;
     return report;
   }
-  build_rigid_modes(y.data());
   report.held_mode_residual = held_component(forces) / options_.force_scale_n;
   project(forces);
   double force_norm = forces.norm();
@@ -386,6 +396,7 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
   const double scale = options_.force_scale_n;
   Preconditioning& pc = *preconditioning_;
   damping_ = 0.0;  // Newton first; the damping grows only where the model fails
+  damping_growth_ = 2.0;
 
   for (int iteration = 0;; ++iteration) {
     report.residual = force_norm / scale;
@@ -415,7 +426,7 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
 
     bool accepted = false;
     std::int64_t inverted_in_search = -1;
-    for (int attempt = 0; attempt < 6 && !accepted; ++attempt) {
+    for (int attempt = 0; attempt < kMaxAttempts && !accepted; ++attempt) {
       if (!pc.factor_valid) {
         build_preconditioner(damping_);
         ++report.preconditioner_builds;
@@ -427,11 +438,21 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
           negative_curvature) {
         pc.factor_valid = false;  // rebuild at the next solve
       }
+      // Negative curvature: K is indefinite here (a compressed rim, a state
+      // far from equilibrium). A truncated CG direction makes little progress;
+      // shift K + lambda diag K until it is positive definite and solve again.
+      if (negative_curvature && attempt + 1 < kMaxAttempts) {
+        damping_ = std::max(damping_growth_ * damping_, kNegativeCurvatureDamping);
+        damping_growth_ *= 2.0;
+        pc.factor_valid = false;
+        continue;
+      }
       // Pi(y + a dx) = Pi(y) - a f.dx + O(a^2): dx must point downhill. The
       // damped quadratic model predicts the decrease f.dx / 2 of a CG iterate.
       const double slope = -forces.dot(dx);
       if (!(slope < 0.0) || !dx.allFinite()) {
-        damping_ = std::max(10.0 * damping_, kMinDamping * 100.0);
+        damping_ = std::max(damping_growth_ * damping_, kNegativeCurvatureDamping);
+        damping_growth_ *= 2.0;
         pc.factor_valid = false;
         continue;
       }
@@ -453,10 +474,8 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
         if (!decrease && trial_energy - energy <= kEnergyRoundoff * std::abs(energy)) {
           // Pi cannot resolve the change: accept if the projected residual drops.
           Eigen::VectorXd projected = trial_forces;
-          build_rigid_modes(trial.data());
           project(projected);
           roundoff_regime = projected.norm() < force_norm;
-          build_rigid_modes(y.data());
           if (ls == 0 && roundoff_regime) ratio = 1.0;
         }
         if (decrease || roundoff_regime) {
@@ -466,21 +485,26 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
           report.elastic_energy_j = trial_report.elastic_energy_j;
           report.contact = trial_report.contact;
           accepted = true;
-          if (std::getenv("CF_DEBUG")) std::fprintf(stderr, "  it %d res %.3e step %.3g cg %d eta %.2g negc %d damping %.1e ratio %.3f\n", iteration, force_norm / scale, step, cg, forcing, (int)negative_curvature, damping_, ratio);
           break;
         }
         // minimiser of the quadratic through Pi(0), Pi'(0) and Pi(step), kept in [step/10, step/2]
         const double quadratic = -slope * step * step / (2.0 * (trial_energy - energy - slope * step));
         step = std::clamp(quadratic, 0.1 * step, 0.5 * step);
       }
-      // Levenberg-Marquardt update of the damping from the model's quality:
-      // the rolling of a flattened cell is nearly free in the tangent (only
-      // the vertices already inside the contact range resist it) but not in
-      // Pi, and the damping keeps Newton from taking it at full length.
-      if (accepted && step == 1.0 && ratio > 0.5) {
-        damping_ = damping_ * 0.25 < kMinDamping ? 0.0 : damping_ * 0.25;
+      // Levenberg-Marquardt update of the damping from the gain ratio rho of
+      // the full step (Nielsen 1999): on success lambda *= max(1/3, 1 -
+      // (2 rho - 1)^3) and the growth factor resets to 2; on a cut step
+      // lambda *= growth, growth *= 2. Soft modes whose energy is not
+      // quadratic (a flattened cell's rim at large compression) make full
+      // Newton steps overshoot; the damping settles just above their stiffness.
+      if (accepted && step == 1.0 && ratio > 0.0) {
+        const double t = 2.0 * ratio - 1.0;
+        damping_ *= std::max(1.0 / 3.0, 1.0 - t * t * t);
+        if (damping_ < kMinDamping) damping_ = 0.0;
+        damping_growth_ = 2.0;
       } else {
-        damping_ = std::max(damping_ * 8.0, kMinDamping);
+        damping_ = std::max(damping_ * damping_growth_, kMinDamping);
+        damping_growth_ *= 2.0;
         if (!accepted) pc.factor_valid = false;
       }
     }
@@ -498,7 +522,6 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
       }
       return report;
     }
-    build_rigid_modes(y.data());
     report.held_mode_residual = held_component(forces) / options_.force_scale_n;
     project(forces);
     previous_force_norm = force_norm;

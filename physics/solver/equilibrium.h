@@ -12,11 +12,14 @@
 //
 // Rigid modes. Frictionless plates fix neither the translation in x and y nor
 // the rotation about z: Pi is invariant under them and K is singular along
-// them. Those three modes are projected out of every Newton correction
-// (projected PCG), so the vertex mean stays at its x-y position and the cell
-// does not spin about z. Projection rather than a small regularisation: it is
-// exact (no bias in the solution, no tuning constant, no near-singular matrix
-// for CG) and costs a few dot products per CG iteration.
+// them. They are held by the linear constraint Q^T (y - X) = 0, Q the
+// orthonormal rigid modes of the reference X (translations, rotations about
+// its vertex mean): the initial guess is projected onto it and every Newton
+// correction is projected out of Q (projected PCG), so the vertex mean keeps
+// its x-y position, the cell does not spin, and the constrained equilibrium is
+// unique (the same whatever the Newton path). Projection rather than a small
+// regularisation: it is exact (no bias, no tuning constant, no near-singular
+// matrix for CG) and costs a few dot products per CG iteration.
 // The rotations about x and y (rolling between the plates) are held the same
 // way by default: for a sphere rolling is neutral, and in the tangent it is
 // resisted only by the vertices already inside the contact range, so Newton
@@ -103,13 +106,16 @@ struct EquilibriumReport {
 // body; reused across load steps. `body` must outlive the solver.
 class EquilibriumSolver {
  public:
+  // `reference_positions_m` (3 per vertex) define the held modes: rigid
+  // translations and rotations about the reference's vertex mean.
   EquilibriumSolver(const elastic::ElasticBody& body, std::vector<std::int32_t> contact_vertices,
-                    EquilibriumOptions options);
+                    std::span<const double> reference_positions_m, EquilibriumOptions options);
   ~EquilibriumSolver();
   EquilibriumSolver(const EquilibriumSolver&) = delete;
   EquilibriumSolver& operator=(const EquilibriumSolver&) = delete;
 
-  // Newton from the initial guess in positions_m (3 per vertex); on return it
+  // Newton from the initial guess in positions_m (3 per vertex), first
+  // projected onto the held-mode constraint Q^T (y - X) = 0; on return it
   // holds the last accepted iterate (the equilibrium when converged).
   EquilibriumReport solve(const contact::Obstacles& obstacles, std::span<double> positions_m);
 
@@ -142,6 +148,7 @@ class EquilibriumSolver {
                    double shift, Eigen::VectorXd& dx, bool& negative_curvature);
 
   const elastic::ElasticBody* body_;
+  std::vector<double> reference_positions_;
   std::vector<std::int32_t> contact_vertices_;
   EquilibriumOptions options_;
   elastic::TangentAssembler tangent_;
@@ -154,7 +161,8 @@ class EquilibriumSolver {
   Eigen::VectorXd diagonal_;                           // diag K (Levenberg shift)
   std::vector<Eigen::VectorXd> rigid_modes_;           // orthonormal
   std::unique_ptr<Preconditioning> preconditioning_;
-  double damping_ = 0.0;  // Levenberg-Marquardt lambda of the current solve
+  double damping_ = 0.0;         // Levenberg-Marquardt lambda of the current solve
+  double damping_growth_ = 2.0;  // its growth factor after a failed step
   // CG work vectors
   Eigen::VectorXd r_, z_, p_, q_;
 };

@@ -7,10 +7,12 @@
 //   - the previous displacement increment extrapolated linearly to the new
 //     load, y + (y - y_prev) (t_new - t) / (t - t_prev), and
 //   - the current state,
-// each with the vertices that the moved obstacles overlap pushed back to the
-// obstacles' zero-force surfaces. The extrapolation makes the predictor
-// first-order accurate in the step, which typically leaves 2-3 Newton
-// iterations per load point.
+// each also with its contact vertices pushed back along the obstacle normal
+// to no deeper inside the penalty range than they were at the last
+// equilibrium (entering vertices: half the mean depth of those in contact).
+// Inside the range the force grows like depth^2, so a vertex left deep inside
+// costs Newton a halving of its excess per iteration; with this predictor a
+// load point of the 40-point curve takes 4-6 Newton iterations.
 #pragma once
 
 #include <functional>

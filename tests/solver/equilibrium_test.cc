@@ -76,7 +76,7 @@ std::vector<double> compressed_state(const Problem& p, EquilibriumSolver& solver
 
 TEST(Equilibrium, ResidualBelowToleranceAndPlatesBalance) {
   const Problem p = make_problem(300, 1.0);
-  EquilibriumSolver solver(p.body, p.surface, options(1e-8));
+  EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, options(1e-8));
   std::vector<double> y = compressed_state(p, solver, 0.1);
   const contact::Obstacles plates = p.plates(0.2 * kRadius);
   const EquilibriumReport report = solver.solve(plates, y);
@@ -124,7 +124,7 @@ TEST(Equilibrium, NewtonConvergesQuadraticallyNearTheSolution) {
   EquilibriumOptions o = options(1e-12);
   o.max_forcing_term = 1e-12;  // exact Newton: the inner solve is not the limit
   o.max_cg_iterations = 20000;
-  EquilibriumSolver solver(p.body, p.surface, o);
+  EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, o);
   std::vector<double> y = compressed_state(p, solver, 0.1);
   // perturb the equilibrium by 0.02 % of R per coordinate
   std::mt19937 rng(3);
@@ -151,7 +151,7 @@ TEST(Equilibrium, NewtonConvergesQuadraticallyNearTheSolution) {
 
 TEST(Equilibrium, InvertedInitialStateIsANumericalFailure) {
   const Problem p = make_problem(300, 1.0);
-  EquilibriumSolver solver(p.body, p.surface, options(1e-6));
+  EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, options(1e-6));
   std::vector<double> y = p.mesh.positions_m;
   // move vertex 0 of tet 7 through its opposite face
   const std::int32_t* tet = p.mesh.tets.data() + 4 * 7;
@@ -173,7 +173,7 @@ TEST(LoadPath, StepThatCannotBeSplitFurtherFails) {
   const Problem p = make_problem(300, 1.0);
   EquilibriumOptions o = options(1e-6);
   o.max_newton_iterations = 1;  // no load step can converge in one iteration from rest
-  EquilibriumSolver solver(p.body, p.surface, o);
+  EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, o);
   LoadPath path(
       solver, [&](double t) { return p.plates(t); }, p.mesh.positions_m, 0.0);
   const LoadStepReport step = path.advance_to(0.4 * kRadius, 2);
@@ -187,11 +187,11 @@ TEST(LoadPath, StepThatCannotBeSplitFurtherFails) {
 
 TEST(LoadPath, HalvedStepsReachTheTarget) {
   const Problem p = make_problem(300, 1.0);
-  EquilibriumSolver generous(p.body, p.surface, options(1e-6));
+  EquilibriumSolver generous(p.body, p.surface, p.mesh.positions_m, options(1e-6));
   const std::vector<double> start = compressed_state(p, generous, 0.1);
   EquilibriumOptions o = options(1e-6);
   o.max_newton_iterations = 5;  // too few for a jump from 10 % to 40 % compression
-  EquilibriumSolver strict(p.body, p.surface, o);
+  EquilibriumSolver strict(p.body, p.surface, p.mesh.positions_m, o);
   LoadPath path(
       strict, [&](double t) { return p.plates(t); }, start, 0.2 * kRadius);
   const LoadStepReport step = path.advance_to(0.8 * kRadius, 8);

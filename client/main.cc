@@ -13,6 +13,7 @@
 
 #include "client/curve_output.h"
 #include "client/exit_codes.h"
+#include "client/flow_output.h"
 #include "client/rpc_client.h"
 #include "client/watch_printer.h"
 #include "physics/io/xdmf.h"
@@ -191,11 +192,21 @@ int main(int argc, char** argv) {
       app.add_subcommand("result", "fetch a job's result: the HDF5 file (+ XDMF) or the curve as CSV");
   result->add_option("job", job_id, "job id")->required();
   result->add_option("-o,--output", output, "output file (.h5; with --csv: .csv, default stdout)");
-  result->add_flag("--csv", csv, "the force-deformation curve as CSV");
+  result->add_flag("--csv", csv,
+                   "the force-deformation curve (compression, indentation) or the deformation time series "
+                   "D(t) (shear flow) as CSV");
 
-  auto* plot = app.add_subcommand("plot", "draw force against deformation with the Hertz curve (SVG)");
-  plot->add_option("job", job_id, "job id")->required();
+  std::vector<std::string> plot_jobs;
+  std::string against;
+  auto* plot = app.add_subcommand(
+      "plot",
+      "draw a job's result as SVG: force against deformation with Hertz (compression, indentation), D "
+      "against strain (shear flow); with --against capillary-number the steady D of several shear-flow "
+      "jobs against Ca beside Roscoe's theory");
+  plot->add_option("jobs", plot_jobs, "job id(s)")->required();
   plot->add_option("-o,--output", output, "SVG file")->required();
+  plot->add_option("--against", against, "steady D of the given shear-flow jobs against this quantity")
+      ->check(CLI::IsMember({"capillary-number"}));
 
   try {
     app.parse(argc, argv);
@@ -305,6 +316,46 @@ int main(int argc, char** argv) {
     return ExitCode::kExitOk;
   }
 
+  if (plot->parsed()) {
+    if (plot_jobs.size() > 1 && against.empty()) {
+      std::fprintf(stderr, "cellflow: plot of several jobs needs --against capillary-number\n");
+      return ExitCode::kExitUsage;
+    }
+    job_id = plot_jobs.front();
+  }
+
+  if (plot->parsed() && !against.empty()) {
+    std::vector<client::SteadyPoint> points;
+    for (const std::string& id : plot_jobs) {
+      TemporaryResult temporary;
+      temporary.path =
+          (fs::temp_directory_path() / ("cellflow-" + id + "-" + std::to_string(::getpid()) + ".h5"))
+              .string();
+      const grpc::Status status = client.download(id, temporary.path);
+      if (!status.ok()) return report_error(status, "result " + id);
+      auto point = client::read_steady_point(temporary.path, id);
+      if (!point.ok()) {
+        std::fprintf(stderr, "cellflow: %s\n", point.status().to_string().c_str());
+        return ExitCode::kExitNotFound;
+      }
+      points.push_back(std::move(*point));
+    }
+    const std::string text = client::steady_deformation_svg(
+        points, "steady deformation against capillary number (" + std::to_string(points.size()) + " jobs)");
+    std::ofstream out(output, std::ios::binary | std::ios::trunc);
+    out << text;
+    if (!out) {
+      std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
+      return ExitCode::kExitUsage;
+    }
+    for (const auto& p : points) {
+      std::printf("%s  Ca %.6g  steady D %.6g  (%s)\n", p.label.c_str(), p.capillary_number,
+                  p.steady_taylor_deformation, p.stop.c_str());
+    }
+    std::printf("%s\n", output.c_str());
+    return ExitCode::kExitOk;
+  }
+
   if (result->parsed() || plot->parsed()) {
     const bool want_file = result->parsed() && !csv;
     if (want_file && output.empty()) {
@@ -331,7 +382,8 @@ int main(int argc, char** argv) {
       }
       return ExitCode::kExitOk;
     }
-    auto curve = client::read_curve(h5);
+    const bool flow = client::is_flow_result(h5);
+    auto curve = flow ? client::read_deformation_series(h5) : client::read_curve(h5);
     if (!curve.ok()) {
       std::fprintf(stderr, "cellflow: %s\n", curve.status().to_string().c_str());
       return ExitCode::kExitNotFound;
@@ -344,7 +396,13 @@ int main(int argc, char** argv) {
         title +=
             " (" + scene_of(job.spec()) + (job.spec().name().empty() ? "" : ", " + job.spec().name()) + ")";
       }
-      text = client::curve_svg(*curve, title);
+      if (flow) {
+        auto point = client::read_steady_point(h5, job_id);
+        text = client::deformation_svg(*curve, point.ok() ? point->capillary_number : 0.0,
+                                       point.ok() ? point->steady_taylor_deformation : 0.0, title);
+      } else {
+        text = client::curve_svg(*curve, title);
+      }
     } else {
       text = client::curve_csv(*curve);
     }

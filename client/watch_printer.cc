@@ -59,7 +59,8 @@ std::string event_line(const v1::JobEvent& event) {
       line += "sample index=" + std::to_string(s.index()) + " time_s=" + format("%.6e", s.time_s()) +
               " strain=" + format("%.6g", s.strain()) +
               " taylor_deformation=" + format("%.6g", s.taylor_deformation()) +
-              " inclination_rad=" + format("%.6g", s.inclination_rad());
+              " inclination_rad=" + format("%.6g", s.inclination_rad()) +
+              " net_strain=" + format("%.6g", s.net_strain());
       break;
     }
     case v1::JobEvent::KIND_NOT_SET:

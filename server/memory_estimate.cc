@@ -5,13 +5,16 @@
 #include <filesystem>
 #include <system_error>
 
+#include "physics/scenes/shear_flow/shear_flow.h"
+#include "spec/shear_flow/shear_flow_spec.h"
+
 namespace cellflow::server {
 
 namespace {
 
 constexpr std::int64_t kBaselineBytes = 64LL << 20;   // process, gRPC, HDF5
 constexpr std::int64_t kBytesPerVertex = 16LL << 10;  // see the header
-constexpr int kDefaultVertexCount = 3000;             // CellSpec.target_vertex_count default
+constexpr int kDefaultVertexCount = 3000;             // CellSpec.target_vertex_count default (also in flow)
 
 std::int64_t vertex_count(const v1::CellSpec& cell) {
   if (!cell.mesh_file().empty()) {
@@ -25,17 +28,17 @@ std::int64_t vertex_count(const v1::CellSpec& cell) {
 }
 
 std::int64_t shear_flow_bytes(const v1::ShearFlowSpec& flow) {
-  const auto& n = flow.numerics();
-  const double per_radius = n.has_cells_per_radius() ? n.cells_per_radius() : 6.0;
-  const double bx = n.has_box_x_radii() ? n.box_x_radii() : 10.0;
-  const double by = n.has_box_y_radii() ? n.box_y_radii() : 15.0;
-  const double bz = n.has_box_z_radii() ? n.box_z_radii() : 5.0;
-  const double nodes = std::ceil(bx * per_radius) * std::ceil(by * per_radius) * std::ceil(bz * per_radius);
-  const double value_bytes = n.has_single_precision() && n.single_precision() ? 4.0 : 8.0;
-  // Two population sets of 19 values, density, velocity and force (7 doubles).
-  const double per_node = 2 * 19 * value_bytes + 7 * 8.0;
-  const double lattice = std::isfinite(nodes) ? nodes * per_node : 1e300;
-  return static_cast<std::int64_t>(std::min(lattice, 9e18)) + vertex_count(flow.cell()) * kBytesPerVertex;
+  // The server estimates only validated specs; an invalid one has no lattice to count.
+  const StatusOr<scenes::ShearFlowParams> params = spec::to_params(flow);
+  if (!params.ok()) return vertex_count(flow.cell()) * kBytesPerVertex;
+  const StatusOr<scenes::ShearFlowSetup> setup = scenes::plan_shear_flow(*params);
+  if (!setup.ok()) return vertex_count(flow.cell()) * kBytesPerVertex;
+  const double nodes = static_cast<double>(setup->nx) * setup->ny * setup->nz;
+  // Double buffers of the scene beside the lattice, not alive at the same
+  // time: the start profile (u_x and a zero field) and one velocity snapshot.
+  const double transient_values = params->numerics.fluid_snapshots ? 3.0 : 2.0;
+  const double bytes = static_cast<double>(setup->lattice_bytes) + nodes * transient_values * 8.0;
+  return static_cast<std::int64_t>(std::min(bytes, 9e18)) + vertex_count(flow.cell()) * kBytesPerVertex;
 }
 
 }  // namespace

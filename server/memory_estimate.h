@@ -13,9 +13,13 @@ namespace cellflow::server {
 // and its incomplete Cholesky factor. Measured peak RSS of cellflow-run
 // (one load point): 23 MB at 3000 vertices, 62 MB at 10000, i.e. about
 // 5.5 KiB per vertex; the estimate keeps a margin of about three.
-// Shear flow: the D3Q19 lattice (two population sets, 19 values each, plus
-// density, velocity and force fields) over the box in lattice cells, plus
-// the cell mesh.
+// Shear flow: the D3Q19 lattice as physics/lb allocates it (in-place AA
+// streaming: ONE population array of 19 values per node, plus the force and
+// velocity fields, 3 values each, in the storage precision; lb::memory_bytes
+// via scenes::plan_shear_flow), the larger of the transient per-node buffers
+// in double (the Couette start profile, 2 values; the fluid velocity
+// snapshots, 3 values, when numerics.fluid_snapshots is set), and the cell
+// mesh at the quasi-static rate per vertex.
 std::int64_t estimate_job_memory_bytes(const v1::JobSpec& spec);
 
 }  // namespace cellflow::server

@@ -2,6 +2,8 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include "spec/shear_flow/shear_flow_spec.h"
+
 namespace cellflow::spec {
 namespace {
 
@@ -80,8 +82,7 @@ Status validate(const v1::JobSpec& spec) {
     case v1::JobSpec::kIndentation:
       return to_params(spec.indentation()).status();
     case v1::JobSpec::kShearFlow:
-      // Wired to spec/shear_flow once the flow scene lands.
-      return invalid_argument("shear_flow: not supported by this build yet");
+      return validate(spec.shear_flow());
     case v1::JobSpec::SCENE_NOT_SET:
       break;
   }

@@ -8,6 +8,7 @@
 #include "cellflow/v1/spec.pb.h"
 #include "physics/core/status.h"
 #include "physics/scenes/quasi_static.h"
+#include "spec/shear_flow/shear_flow_spec.h"  // to_params / validate of ShearFlowSpec
 
 namespace cellflow::spec {
 

@@ -1,5 +1,6 @@
-// cellflow-run SPEC.json [-o curve.csv] [--quiet] [--threads N]: runs a quasi-static job
-// spec locally and writes its force-deformation curve as CSV.
+// cellflow-run SPEC.json [-o curve.csv] [--quiet] [--threads N]: runs a job
+// spec locally and writes its force-deformation curve (quasi-static) or its
+// deformation time series (shear flow) as CSV.
 #include <CLI/CLI.hpp>
 #include <fstream>
 #include <iostream>
@@ -8,8 +9,9 @@
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "Run a cellflow job spec (protobuf JSON mapping) locally; the curve goes to CSV.\n"
-      "Exit codes: 0 done, 1 usage, 2 invalid spec, 3 numerical failure (curve so far written)."};
+      "Run a cellflow job spec (protobuf JSON mapping) locally; the force curve (compression,\n"
+      "indentation) or the deformation time series D(t) (shear flow) goes to CSV.\n"
+      "Exit codes: 0 done, 1 usage, 2 invalid spec, 3 numerical failure (rows so far written)."};
   std::string spec_path, output_path;
   bool quiet = false;
   int threads = 0;

@@ -2,8 +2,10 @@
 
 #include <cstdio>
 #include <fstream>
+#include <numbers>
 #include <sstream>
 
+#include "physics/scenes/shear_flow/shear_flow.h"
 #include "spec/job_spec.h"
 
 namespace cellflow::tools {
@@ -57,6 +59,59 @@ std::string curve_csv_row(const scenes::CurvePoint& p) {
   return row;
 }
 
+std::string deformation_csv_header() {
+  return "sample,time_s,strain,taylor_deformation,inclination_rad,net_strain,a1_m,a2_m,a3_m,"
+         "tank_treading_frequency_per_s,volume_m3";
+}
+
+std::string deformation_csv_row(const scenes::ShearFlowSample& s) {
+  std::string row = std::to_string(s.index);
+  for (double v : {s.time_s, s.strain_units, s.taylor_deformation,
+                   s.inclination_deg * std::numbers::pi / 180.0, s.net_strain, s.semi_axes_m[0],
+                   s.semi_axes_m[1], s.semi_axes_m[2], s.tank_treading_frequency_per_s, s.volume_m3}) {
+    row += ',' + number(v);
+  }
+  return row;
+}
+
+namespace {
+
+RunOutcome run_shear_flow(const v1::ShearFlowSpec& spec, std::ostream& csv, std::ostream* progress,
+                          int threads) {
+  StatusOr<scenes::ShearFlowParams> params = spec::to_params(spec);
+  if (!params.ok()) return outcome_for(params.status());
+  params->numerics.threads = threads;
+  csv << deformation_csv_header() << '\n' << std::flush;
+  scenes::ShearFlowCallbacks callbacks;
+  callbacks.on_sample = [&](const scenes::ShearFlowSample& s) {
+    csv << deformation_csv_row(s) << '\n' << std::flush;
+    if (progress) {
+      char line[200];
+      std::snprintf(line, sizeof(line), "sample %d  strain %.2f/%.4g  D %.4f  inclination %.2f deg\n",
+                    s.index, s.strain_units, params->numerics.max_strain, s.taylor_deformation,
+                    s.inclination_deg);
+      *progress << line << std::flush;
+    }
+  };
+  const scenes::ShearFlowResult result = scenes::run_shear_flow(*params, callbacks);
+  if (progress && !result.samples.empty()) {
+    char line[300];
+    std::snprintf(
+        line, sizeof(line),
+        "stopped: %s after %lld steps (%.1f s); Ca %.4g, steady D %.5f (5/4 Ca = %.5f), "
+        "inclination %.2f deg\n",
+        std::string(scenes::stop_name(result.stop)).c_str(), static_cast<long long>(result.time_steps),
+        result.wall_time_s, result.setup.capillary_number, result.steady_taylor_deformation,
+        scenes::small_ca_taylor_deformation(result.setup.capillary_number), result.steady_inclination_deg);
+    *progress << line;
+    for (const std::string& w : result.warnings) *progress << "warning: " << w << '\n';
+    *progress << std::flush;
+  }
+  return outcome_for(result.status);
+}
+
+}  // namespace
+
 RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress,
                          int threads) {
   std::ifstream in(spec_path);
@@ -72,6 +127,7 @@ RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* pro
   if (threads < 0)
     return outcome_for(invalid_argument("--threads = " + std::to_string(threads) + " must be >= 0"));
   if (Status s = spec::validate(spec); !s.ok()) return outcome_for(s);
+  if (spec.has_shear_flow()) return run_shear_flow(spec.shear_flow(), csv, progress, threads);
   scenes::SceneCallbacks callbacks;
   int total_points = 0;
   callbacks.on_point = [&](const scenes::CurvePoint& p) {

@@ -1,5 +1,6 @@
 // The logic of `cellflow-run SPEC.json`: read a job spec in the protobuf JSON
-// mapping, validate it, run its quasi-static scene and write the curve as CSV.
+// mapping, validate it, run its scene and write CSV: the force curve of a
+// quasi-static scene, the deformation time series D(t) of a shear flow.
 // main() only parses the command line (tools/cellflow_run_main.cc).
 #pragma once
 
@@ -9,6 +10,7 @@
 #include "cellflow/v1/spec.pb.h"
 #include "physics/core/status.h"
 #include "physics/scenes/quasi_static.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
 
 namespace cellflow::tools {
 
@@ -25,6 +27,12 @@ std::string curve_csv_header();
 // One row; doubles with 17 significant digits so they read back exactly.
 std::string curve_csv_row(const scenes::CurvePoint& point);
 
+// The shear-flow CSV (the columns of `cellflow result --csv` for a flow job):
+// sample, time_s, strain (gammadot t), taylor_deformation, inclination_rad,
+// net_strain, a1_m, a2_m, a3_m, tank_treading_frequency_per_s, volume_m3.
+std::string deformation_csv_header();
+std::string deformation_csv_row(const scenes::ShearFlowSample& sample);
+
 struct RunOutcome {
   ExitCode exit_code = kExitOk;
   Status status;
@@ -36,8 +44,8 @@ RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::o
                          int threads = 0);
 
 // Validates and runs `spec`; writes the CSV header and one row per converged
-// point to `csv` as the run goes (so a failed run keeps its curve), progress
-// lines to `progress` when it is not null.
+// point (flow: per sample) to `csv` as the run goes (so a failed run keeps its
+// curve), progress lines to `progress` when it is not null.
 RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress, int threads = 0);
 
 }  // namespace cellflow::tools

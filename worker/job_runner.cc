@@ -1,13 +1,16 @@
 #include "worker/job_runner.h"
 
 #include <chrono>
+#include <cmath>
 #include <map>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <thread>
 #include <vector>
 
 #include "physics/io/h5md.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
 #include "spec/job_spec.h"
 
 namespace cellflow::worker {
@@ -164,7 +167,192 @@ RunOutcome run_quasi_static(const v1::JobSpec& spec, Params params, const RunOpt
   return outcome;
 }
 
+// Writes one shear-flow run: the mesh connectivity once, the cell positions
+// at each snapshot, every deformation sample as time series, the fluid
+// velocity snapshots when the spec asks for them, the resolved setup up front
+// and the steady values at the end. Time is physical (s); the H5MD step is
+// the lattice time step.
+class FlowRecorder {
+ public:
+  FlowRecorder(io::H5mdWriter* writer, const scenes::ShearFlowSetup& setup, double max_strain,
+               const JobEvents& events)
+      : writer_(writer), setup_(setup), max_strain_(max_strain), events_(events) {}
+
+  scenes::ShearFlowCallbacks callbacks() {
+    scenes::ShearFlowCallbacks cb;
+    cb.on_mesh = [this](const mesh::TetMesh& mesh) { on_mesh(mesh); };
+    cb.on_positions = [this](int, double time_s, std::span<const double> x) {
+      keep(writer_->append_positions("cell", step_of(time_s), time_s, x));
+      keep(writer_->flush());
+    };
+    cb.on_sample = [this](const scenes::ShearFlowSample& sample) { on_sample(sample); };
+    cb.on_fluid_velocity = [this](const scenes::FluidVelocitySnapshot& snap) {
+      io::UniformGrid grid;
+      grid.nx = snap.nx;
+      grid.ny = snap.ny;
+      grid.nz = snap.nz;
+      grid.spacing_m = snap.spacing_m;
+      // Lattice node (i, j, k) sits at ((i + 1/2) dx, ...) in box coordinates, as the cell positions.
+      for (double& o : grid.origin_m) o = 0.5 * snap.spacing_m;
+      keep(writer_->append_vector_field("fluid_velocity", step_of(snap.time_s), snap.time_s, grid,
+                                        snap.ux_m_per_s, snap.uy_m_per_s, snap.uz_m_per_s));
+      keep(writer_->flush());
+    };
+    cb.on_progress = [this](double fraction) {
+      if (events_.progress) {
+        char stage[64];
+        std::snprintf(stage, sizeof stage, "strain %.2f/%.4g", last_strain_, max_strain_);
+        events_.progress(fraction, stage);
+      }
+    };
+    cb.should_stop = [this] { return events_.should_stop && events_.should_stop(); };
+    return cb;
+  }
+
+  // What the run derived before the first step, so a partial result has it too.
+  void write_setup() {
+    auto put = [&](const char* name, double value, const char* unit) {
+      keep(writer_->write_scalar(std::string("/parameters/setup/") + name, value, unit));
+    };
+    put("shear_rate_per_s", setup_.shear_rate_per_s, "1/s");
+    put("capillary_number", setup_.capillary_number, "1");
+    put("shear_modulus_pa", setup_.shear_modulus_pa, "Pa");
+    put("reynolds_number_physical", setup_.reynolds_number_physical, "1");
+    put("reynolds_number_simulated", setup_.reynolds_number_simulated, "1");
+    put("simulated_density_kg_m3", setup_.simulated_density_kg_m3, "kg/m^3");
+    put("lattice_spacing_m", setup_.lattice_spacing_m, "m");
+    put("time_step_s", setup_.time_step_s, "s");
+    put("nx", setup_.nx, "1");
+    put("ny", setup_.ny, "1");
+    put("nz", setup_.nz, "1");
+    put("wall_speed_m_per_s", setup_.wall_speed_m_per_s, "m/s");
+    put("mach_number", setup_.mach_number, "1");
+    keep(writer_->flush());
+  }
+
+  // The steady values and why the run stopped; closes the file.
+  Status finish(const scenes::ShearFlowResult& result) {
+    auto put = [&](const char* name, double value, const char* unit) {
+      keep(writer_->write_scalar(std::string("/summary/") + name, value, unit));
+    };
+    keep(writer_->write_string("/summary/stop", scenes::stop_name(result.stop)));
+    if (!result.status.ok()) keep(writer_->write_string("/summary/status", result.status.to_string()));
+    if (!result.samples.empty()) {
+      put("steady_taylor_deformation", result.steady_taylor_deformation, "1");
+      put("steady_inclination_rad", result.steady_inclination_deg * std::numbers::pi / 180.0, "rad");
+      put("steady_net_strain", result.steady_net_strain, "1");
+      put("tank_treading_frequency_per_s", result.tank_treading_frequency_per_s, "1/s");
+      put("steady_relative_change", result.steady_relative_change, "1");
+      put("reference_taylor_deformation", result.reference_taylor_deformation, "1");
+      put("stiffness_ratio", result.stiffness_ratio, "1");
+      put("mesh_spacing_over_dx", result.mesh_spacing_over_dx, "1");
+      put("thickness_over_kernel", result.thickness_over_kernel, "1");
+      put("time_steps", static_cast<double>(result.time_steps), "1");
+      put("wall_time_s", result.wall_time_s, "s");
+    }
+    std::string warnings;
+    for (const std::string& w : result.warnings) warnings += (warnings.empty() ? "" : "\n") + w;
+    if (!warnings.empty()) keep(writer_->write_string("/summary/warnings", warnings));
+    keep(writer_->close());
+    return status_;
+  }
+
+  int samples() const { return samples_; }
+
+ private:
+  void keep(Status s) {
+    if (status_.ok() && !s.ok()) status_ = std::move(s);
+  }
+
+  std::int64_t step_of(double time_s) const {
+    return setup_.time_step_s > 0.0 ? std::llround(time_s / setup_.time_step_s) : 0;
+  }
+
+  void on_mesh(const mesh::TetMesh& mesh) {
+    std::vector<std::uint8_t> region(mesh.tet_region.size());
+    for (std::size_t i = 0; i < region.size(); ++i) region[i] = static_cast<std::uint8_t>(mesh.tet_region[i]);
+    keep(writer_->write_tetrahedra("cell", mesh.tets, region));
+    keep(writer_->flush());
+  }
+
+  void on_sample(const scenes::ShearFlowSample& s) {
+    const std::int64_t step = s.time_step;
+    const double time = s.time_s;
+    const double inclination_rad = s.inclination_deg * std::numbers::pi / 180.0;
+    auto put = [&](const char* name, double value) {
+      keep(writer_->append_observable(name, step, time, value));
+    };
+    put("strain", s.strain_units);
+    put("taylor_deformation", s.taylor_deformation);
+    put("inclination_rad", inclination_rad);
+    put("net_strain", s.net_strain);
+    keep(writer_->append_observable("semi_axes_m", step, time, std::span<const double>(s.semi_axes_m)));
+    keep(writer_->append_observable("centroid_m", step, time, std::span<const double>(s.centroid_m)));
+    put("tank_treading_frequency_per_s", s.tank_treading_frequency_per_s);
+    put("volume_m3", s.volume_m3);
+    put("elastic_energy_j", s.elastic_energy_j);
+    keep(writer_->flush());  // a killed job leaves every reported sample readable
+    ++samples_;
+    last_strain_ = s.strain_units;
+    if (events_.deformation_sample) events_.deformation_sample(deformation_sample_from(s));
+  }
+
+  io::H5mdWriter* writer_;
+  scenes::ShearFlowSetup setup_;
+  double max_strain_;
+  const JobEvents& events_;
+  double last_strain_ = 0.0;
+  int samples_ = 0;
+  Status status_;
+};
+
+RunOutcome run_shear_flow_job(const v1::JobSpec& spec, scenes::ShearFlowParams params,
+                              const RunOptions& options, const JobEvents& events) {
+  RunOutcome outcome;
+  if (options.threads > 0) params.numerics.threads = options.threads;
+  const StatusOr<scenes::ShearFlowSetup> setup = scenes::plan_shear_flow(params);
+  if (!setup.ok()) {
+    outcome.status = setup.status();
+    return outcome;
+  }
+  io::H5mdCreator creator;
+  creator.program_version = options.program_version;
+  auto writer = io::H5mdWriter::create(options.result_path, creator);
+  if (!writer.ok()) {
+    outcome.status = writer.status();
+    return outcome;
+  }
+  if (Status s = (*writer)->write_parameters_json(spec::job_spec_to_json(spec)); !s.ok()) {
+    outcome.status = s;
+    return outcome;
+  }
+  FlowRecorder recorder(writer->get(), *setup, params.numerics.max_strain, events);
+  recorder.write_setup();
+  if (events.progress) events.progress(0.0, "meshing");
+  const scenes::ShearFlowResult result = scenes::run_shear_flow(params, recorder.callbacks());
+  Status written = recorder.finish(result);
+  outcome.samples = recorder.samples();
+  outcome.result_written = written.ok();
+  outcome.status = !result.status.ok() ? result.status : written;
+  if (outcome.status.ok() && events.progress)
+    events.progress(1.0, std::string(scenes::stop_name(result.stop)));
+  return outcome;
+}
+
 }  // namespace
+
+v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& s) {
+  v1::DeformationSample sample;
+  sample.set_index(s.index);
+  sample.set_time_s(s.time_s);
+  sample.set_strain(s.strain_units);
+  sample.set_taylor_deformation(s.taylor_deformation);
+  for (double a : s.semi_axes_m) sample.add_semi_axes_m(a);
+  sample.set_inclination_rad(s.inclination_deg * std::numbers::pi / 180.0);
+  sample.set_net_strain(s.net_strain);
+  sample.set_volume_m3(s.volume_m3);
+  return sample;
+}
 
 v1::ForceSample force_sample_from(const scenes::CurvePoint& point) {
   v1::ForceSample sample;
@@ -197,8 +385,11 @@ RunOutcome run_job(const v1::JobSpec& spec, const RunOptions& options, const Job
       if (!params.ok()) return {params.status()};
       return run_quasi_static(spec, std::move(*params), options, events, &scenes::run_indentation);
     }
-    case v1::JobSpec::kShearFlow:
-      return {Status(StatusCode::kFailedPrecondition, "shear_flow: this worker has no shear-flow scene yet")};
+    case v1::JobSpec::kShearFlow: {
+      auto params = spec::to_params(spec.shear_flow());
+      if (!params.ok()) return {params.status()};
+      return run_shear_flow_job(spec, std::move(*params), options, events);
+    }
     case v1::JobSpec::SCENE_NOT_SET:
       break;
   }

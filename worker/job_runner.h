@@ -4,9 +4,11 @@
 // passes callbacks that forward to the server; tests and benchmarks call it
 // directly.
 //
-// Adding a scene (shear flow) is one more case in run_job(): convert its spec,
-// call the scene with callbacks that emit DeformationSamples and write
-// frames and time series through the same H5mdWriter.
+// Quasi-static scenes emit ForceSamples and write the force curve; the
+// shear-flow scene emits DeformationSamples and writes the deformation time
+// series, the cell trajectory at snapshot intervals, optional fluid velocity
+// snapshots (/fields/fluid_velocity), the resolved setup (/parameters/setup)
+// and the steady values (/summary) through the same H5mdWriter.
 #pragma once
 
 #include <functional>
@@ -16,6 +18,7 @@
 #include "cellflow/v1/spec.pb.h"
 #include "physics/core/status.h"
 #include "physics/scenes/quasi_static.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
 
 namespace cellflow::worker {
 
@@ -28,10 +31,11 @@ struct JobEvents {
 };
 
 struct RunOptions {
-  std::string result_path;           // the HDF5 file to write (the caller picks a temporary name)
-  int position_frames = 10;          // frames between the reference and the final state, at most
-  int threads = 0;                   // OpenMP threads for the physics; 0: the spec's / default
-  int debug_delay_per_point_ms = 0;  // testing aid: a cancellable pause after each load point
+  std::string result_path;   // the HDF5 file to write (the caller picks a temporary name)
+  int position_frames = 10;  // quasi-static: frames between the reference and the final state, at most
+                             // (a flow job writes every snapshot of numerics.snapshot_every_strain)
+  int threads = 0;           // OpenMP threads for the physics; 0: the spec's / default
+  int debug_delay_per_point_ms = 0;  // testing aid: a cancellable pause after each load point (quasi-static)
   std::string program_version = "0.1.0";
 };
 
@@ -45,12 +49,7 @@ RunOutcome run_job(const v1::JobSpec& spec, const RunOptions& options, const Job
 
 // A curve point as the sample message of the API.
 v1::ForceSample force_sample_from(const scenes::CurvePoint& point);
-
-// The observables a quasi-static result holds, in the column order of
-// `cellflow result --csv` (after "point"); semi_axes_m is 3 wide.
-inline constexpr const char* kCurveObservables[] = {
-    "deformation",   "displacement_m", "force_n",          "hertz_force_n",     "taylor_deformation",
-    "semi_axes_m",   "volume_m3",      "elastic_energy_j", "max_penetration_m", "newton_iterations",
-    "cg_iterations", "step_splits",    "residual"};
+// A shear-flow sample as the sample message of the API (inclination in radians).
+v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& sample);
 
 }  // namespace cellflow::worker

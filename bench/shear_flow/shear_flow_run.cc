@@ -59,9 +59,9 @@ int main(int argc, char** argv) {
   cb.on_sample = [&](const scenes::ShearFlowSample& s) {
     if (s.index % every != 0) return;
     std::printf(
-        "%5d strain %7.3f D %.5f incl %6.2f strain_net %.4f tt/gd %.4f centroid_y/H %.5f V %.6g E %.3g\n",
-        s.index, s.strain_units, s.taylor_deformation, s.inclination_deg, s.net_strain,
-        s.tank_treading_frequency_per_s / 1.0, 0.0, s.volume_m3, s.elastic_energy_j);
+        "%5d strain %7.3f D %.5f incl %6.2f net_strain %.4f a1 %.3g m tank_treading %.4g /s V %.6g m3\n",
+        s.index, s.strain_units, s.taylor_deformation, s.inclination_deg, s.net_strain, s.semi_axes_m[0],
+        s.tank_treading_frequency_per_s, s.volume_m3);
     std::fflush(stdout);
   };
   const scenes::ShearFlowResult r = scenes::run_shear_flow(p, cb);
@@ -85,5 +85,7 @@ int main(int argc, char** argv) {
       r.tank_treading_frequency_per_s / s.shear_rate_per_s, r.steady_relative_change,
       scenes::small_ca_taylor_deformation(s.capillary_number),
       scenes::small_ca_inclination_deg_lambda1(s.capillary_number));
+  std::printf("thickness / kernel %.2f\n", r.thickness_over_kernel);
+  for (const std::string& w : r.warnings) std::printf("warning: %s\n", w.c_str());
   return r.status.ok() ? 0 : 1;
 }

@@ -150,6 +150,36 @@ StatusOr<Handle> open_read_only(const std::string& path) {
   return Handle(file);
 }
 
+// A scalar string dataset at `path` (intermediate groups created).
+StatusOr<Handle> write_string_dataset(hid_t file, const std::string& path, std::string_view value) {
+  if (path_exists(file, path)) return Status(StatusCode::kFailedPrecondition, path + " already written");
+  Handle type = string_type(value.size() + 1);
+  Handle space(H5Screate(H5S_SCALAR));
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
+  H5Pset_create_intermediate_group(lcpl.get(), 1);
+  Handle dataset(
+      H5Dcreate2(file, path.c_str(), type.get(), space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
+  std::string buffer(value);
+  if (!dataset.valid() ||
+      H5Dwrite(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.c_str()) < 0) {
+    return h5_error("writing " + path, "");
+  }
+  return dataset;
+}
+
+StatusOr<std::string> read_string_dataset(hid_t file, const std::string& path) {
+  if (!path_exists(file, path)) return Status(StatusCode::kNotFound, "no " + path);
+  Handle dataset(H5Dopen2(file, path.c_str(), H5P_DEFAULT));
+  Handle type(H5Dget_type(dataset.get()));
+  if (H5Tget_class(type.get()) != H5T_STRING) return Status(StatusCode::kInternal, path + " is not a string");
+  std::string buffer(H5Tget_size(type.get()), '\0');
+  if (H5Dread(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.data()) < 0) {
+    return h5_error("reading " + path, "");
+  }
+  buffer.resize(buffer.find('\0') == std::string::npos ? buffer.size() : buffer.find('\0'));
+  return buffer;
+}
+
 }  // namespace
 
 struct H5mdWriter::Impl {
@@ -157,6 +187,11 @@ struct H5mdWriter::Impl {
   H5mdCreator creator;
   std::map<std::string, Element, std::less<>> elements;  // keyed by the element's path
   std::map<std::string, int, std::less<>> frames;        // position frames per particle group
+  struct Field {
+    Series step, time;
+    UniformGrid grid;
+  };
+  std::map<std::string, Field, std::less<>> fields;  // vector fields by name
 };
 
 H5mdWriter::H5mdWriter(std::string path, std::unique_ptr<Impl> impl)
@@ -337,20 +372,109 @@ Status H5mdWriter::append_observable(std::string_view name, std::int64_t step, d
 
 Status H5mdWriter::write_parameters_json(std::string_view json) {
   if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
+  auto dataset = write_string_dataset(impl_->file.get(), "/parameters/job_spec_json", json);
+  if (!dataset.ok()) return dataset.status();
+  return write_string_attribute(dataset->get(), "format", "protobuf JSON mapping of cellflow.v1.JobSpec");
+}
+
+Status H5mdWriter::write_string(std::string_view path, std::string_view value) {
+  if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
+  return write_string_dataset(impl_->file.get(), std::string(path), value).status();
+}
+
+Status H5mdWriter::write_scalar(std::string_view path, double value, std::string_view unit) {
+  if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
   const hid_t file = impl_->file.get();
-  if (path_exists(file, "/parameters/job_spec_json")) {
-    return {StatusCode::kFailedPrecondition, "parameters already written"};
-  }
-  Handle type = string_type(json.size() + 1);
+  const std::string name(path);
+  if (path_exists(file, name)) return {StatusCode::kFailedPrecondition, name + " already written"};
   Handle space(H5Screate(H5S_SCALAR));
-  Handle dataset(H5Dcreate2(file, "/parameters/job_spec_json", type.get(), space.get(), H5P_DEFAULT,
-                            H5P_DEFAULT, H5P_DEFAULT));
-  std::string buffer(json);
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
+  H5Pset_create_intermediate_group(lcpl.get(), 1);
+  Handle dataset(
+      H5Dcreate2(file, name.c_str(), H5T_IEEE_F64LE, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
   if (!dataset.valid() ||
-      H5Dwrite(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.c_str()) < 0) {
-    return h5_error("writing /parameters/job_spec_json", path_);
+      H5Dwrite(dataset.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0)
+    return h5_error("writing " + name, path_);
+  if (!unit.empty()) return write_string_attribute(dataset.get(), "unit", unit);
+  return {};
+}
+
+Status H5mdWriter::append_vector_field(std::string_view name, std::int64_t step, double time,
+                                       const UniformGrid& grid, std::span<const double> x,
+                                       std::span<const double> y, std::span<const double> z) {
+  if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
+  const std::size_t nodes = static_cast<std::size_t>(std::max(grid.nx, 0)) * std::max(grid.ny, 0) *
+                            static_cast<std::size_t>(std::max(grid.nz, 0));
+  if (nodes == 0 || x.size() != nodes || y.size() != nodes || z.size() != nodes) {
+    return invalid_argument("field " + std::string(name) + ": each component needs nx * ny * nz values");
   }
-  return write_string_attribute(dataset.get(), "format", "protobuf JSON mapping of cellflow.v1.JobSpec");
+  const hid_t file = impl_->file.get();
+  const std::string base = "/fields/" + std::string(name);
+  auto found = impl_->fields.find(base);
+  if (found == impl_->fields.end()) {
+    Impl::Field field;
+    auto step_series = create_series(file, base + "/step", H5T_STD_I64LE, H5T_NATIVE_INT64, {});
+    if (!step_series.ok()) return step_series.status();
+    auto time_series = create_series(file, base + "/time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {});
+    if (!time_series.ok()) return time_series.status();
+    if (Status s = write_string_attribute(time_series->dataset.get(), "unit", impl_->creator.time_unit);
+        !s.ok())
+      return s;
+    Handle group(H5Gopen2(file, base.c_str(), H5P_DEFAULT));
+    const std::array<int, 3> dimensions = {grid.nx, grid.ny, grid.nz};
+    if (Status s = write_int_attribute(group.get(), "dimensions", dimensions); !s.ok()) return s;
+    hsize_t three[1] = {3};
+    Handle vector_space(H5Screate_simple(1, three, nullptr));
+    Handle scalar_space(H5Screate(H5S_SCALAR));
+    Handle spacing(
+        H5Acreate2(group.get(), "spacing_m", H5T_IEEE_F64LE, scalar_space.get(), H5P_DEFAULT, H5P_DEFAULT));
+    Handle origin(
+        H5Acreate2(group.get(), "origin_m", H5T_IEEE_F64LE, vector_space.get(), H5P_DEFAULT, H5P_DEFAULT));
+    if (H5Awrite(spacing.get(), H5T_NATIVE_DOUBLE, &grid.spacing_m) < 0 ||
+        H5Awrite(origin.get(), H5T_NATIVE_DOUBLE, grid.origin_m) < 0) {
+      return h5_error("writing grid of " + base, path_);
+    }
+    field.step = std::move(*step_series);
+    field.time = std::move(*time_series);
+    field.grid = grid;
+    found = impl_->fields.emplace(base, std::move(field)).first;
+  }
+  Impl::Field& field = found->second;
+  if (field.grid.nx != grid.nx || field.grid.ny != grid.ny || field.grid.nz != grid.nz) {
+    return invalid_argument("field " + std::string(name) + ": grid differs from the first frame");
+  }
+  char frame_name[32];
+  std::snprintf(frame_name, sizeof frame_name, "/frame_%06d", static_cast<int>(field.step.records));
+  const std::string frame_path = base + frame_name;
+  hsize_t dims[4] = {static_cast<hsize_t>(grid.nz), static_cast<hsize_t>(grid.ny),
+                     static_cast<hsize_t>(grid.nx), 3};
+  Handle space(H5Screate_simple(4, dims, nullptr));
+  Handle frame(H5Dcreate2(file, frame_path.c_str(), H5T_IEEE_F32LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                          H5P_DEFAULT));
+  if (!frame.valid()) return h5_error("creating " + frame_path, path_);
+  // Each component array goes to every third value: no interleaved copy of the field.
+  const std::span<const double> components[3] = {x, y, z};
+  hsize_t count[4] = {dims[0], dims[1], dims[2], 1};
+  hsize_t memory_dims[1] = {nodes};
+  Handle memory_space(H5Screate_simple(1, memory_dims, nullptr));
+  for (hsize_t c = 0; c < 3; ++c) {
+    hsize_t start[4] = {0, 0, 0, c};
+    Handle file_space(H5Dget_space(frame.get()));
+    H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
+    if (H5Dwrite(frame.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
+                 components[c].data()) < 0) {
+      return h5_error("writing " + frame_path, path_);
+    }
+  }
+  Handle scalar(H5Screate(H5S_SCALAR));
+  Handle step_attr(H5Acreate2(frame.get(), "step", H5T_STD_I64LE, scalar.get(), H5P_DEFAULT, H5P_DEFAULT));
+  Handle time_attr(H5Acreate2(frame.get(), "time", H5T_IEEE_F64LE, scalar.get(), H5P_DEFAULT, H5P_DEFAULT));
+  if (H5Awrite(step_attr.get(), H5T_NATIVE_INT64, &step) < 0 ||
+      H5Awrite(time_attr.get(), H5T_NATIVE_DOUBLE, &time) < 0) {
+    return h5_error("writing frame attributes", path_);
+  }
+  if (Status s = append_record(field.step, &step); !s.ok()) return s;
+  return append_record(field.time, &time);
 }
 
 Status H5mdWriter::flush() {
@@ -363,6 +487,7 @@ Status H5mdWriter::close() {
   if (!impl_ || !impl_->file.valid()) return {};
   Status status = flush();
   impl_->elements.clear();
+  impl_->fields.clear();
   impl_->file.reset();
   return status;
 }
@@ -405,18 +530,38 @@ StatusOr<std::vector<std::string>> list_observables(const std::string& path) {
 }
 
 StatusOr<std::string> read_parameters_json(const std::string& path) {
+  return read_string(path, "/parameters/job_spec_json");
+}
+
+StatusOr<std::string> read_string(const std::string& path, std::string_view dataset) {
   auto file = open_read_only(path);
   if (!file.ok()) return file.status();
-  const char* name = "/parameters/job_spec_json";
-  if (!path_exists(file->get(), name)) return Status(StatusCode::kNotFound, "no /parameters/job_spec_json");
-  Handle dataset(H5Dopen2(file->get(), name, H5P_DEFAULT));
-  Handle type(H5Dget_type(dataset.get()));
-  std::string buffer(H5Tget_size(type.get()), '\0');
-  if (H5Dread(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.data()) < 0) {
-    return h5_error("reading parameters", path);
+  return read_string_dataset(file->get(), std::string(dataset));
+}
+
+StatusOr<double> read_scalar(const std::string& path, std::string_view dataset) {
+  auto file = open_read_only(path);
+  if (!file.ok()) return file.status();
+  const std::string name(dataset);
+  auto dims = dataset_dims(file->get(), name);
+  if (!dims.ok()) return dims.status();
+  if (!dims->empty()) return Status(StatusCode::kInternal, name + " is not a scalar");
+  double value = 0.0;
+  Handle handle(H5Dopen2(file->get(), name.c_str(), H5P_DEFAULT));
+  if (H5Dread(handle.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0) {
+    return h5_error("reading " + name, path);
   }
-  buffer.resize(buffer.find('\0') == std::string::npos ? buffer.size() : buffer.find('\0'));
-  return buffer;
+  return value;
+}
+
+StatusOr<int> count_field_frames(const std::string& path, std::string_view name) {
+  auto file = open_read_only(path);
+  if (!file.ok()) return file.status();
+  const std::string step = "/fields/" + std::string(name) + "/step";
+  if (!path_exists(file->get(), step)) return 0;
+  auto dims = dataset_dims(file->get(), step);
+  if (!dims.ok()) return dims.status();
+  return static_cast<int>((*dims)[0]);
 }
 
 StatusOr<int> count_position_frames(const std::string& path, std::string_view group) {

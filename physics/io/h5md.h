@@ -7,10 +7,18 @@
 //   /connectivity/<group>_region  [M] region id per tetrahedron (0 cytoplasm, 1 nucleus)
 //   /observables/<name>/{step, time, value}   value: [n] or [n][width]
 //   /parameters/job_spec_json   the job spec (protobuf JSON mapping), a string
+//   /parameters/<name>, /summary/<name>   scalars (attribute unit) and strings
 //   /xdmf/<group>/frame_<k>     [N][3] copy of position frame k for the XDMF sidecar
+//   /fields/<name>/{step, time} one record per frame of a vector field on a
+//                               uniform grid (H5MD has no Eulerian fields: a
+//                               cellflow extension beside the H5MD groups)
+//   /fields/<name>/frame_<k>    [nz][ny][nx][3] float32, attributes step, time;
+//                               /fields/<name> attributes dimensions (nx, ny,
+//                               nz), spacing_m, origin_m (node (0, 0, 0))
 //
-// The writer is generic: frames of positions, named time series and a JSON
-// string, so every scene (quasi-static curves, shear flow) writes through it.
+// The writer is generic: frames of positions, named time series, vector
+// fields, scalars and a JSON string, so every scene (quasi-static curves,
+// shear flow) writes through it.
 // It flushes on flush(); a process killed after a flush leaves a file that
 // opens and holds every record written before that flush.
 #pragma once
@@ -33,6 +41,14 @@ struct H5mdCreator {
   // Unit of the "time" datasets. Quasi-static scenes have no physical time:
   // they store the load parameter (deformation) there and say so here.
   std::string time_unit = "s";
+};
+
+// A node-centred grid: node (i, j, k) at origin_m + (i, j, k) spacing_m;
+// element i + nx (j + ny k) of each component array.
+struct UniformGrid {
+  int nx = 0, ny = 0, nz = 0;
+  double spacing_m = 0.0;
+  double origin_m[3] = {0.0, 0.0, 0.0};
 };
 
 // A time series read back from /observables/<name>.
@@ -67,6 +83,16 @@ class H5mdWriter {
   Status append_observable(std::string_view name, std::int64_t step, double time, double value) {
     return append_observable(name, step, time, std::span<const double>(&value, 1));
   }
+  // Appends one frame of the vector field /fields/<name> (three component
+  // arrays of grid.nx * ny * nz values). Stored as float32: the frames are for
+  // viewing, and the lattice they come from stores float by default. Every
+  // frame of a field has the grid of the first.
+  Status append_vector_field(std::string_view name, std::int64_t step, double time, const UniformGrid& grid,
+                             std::span<const double> x, std::span<const double> y, std::span<const double> z);
+  // A scalar dataset at `path` (e.g. "/summary/steady_taylor_deformation")
+  // with an attribute unit (if not empty); a string dataset at `path`.
+  Status write_scalar(std::string_view path, double value, std::string_view unit = "");
+  Status write_string(std::string_view path, std::string_view value);
   // Stores the job spec JSON as /parameters/job_spec_json (written once).
   Status write_parameters_json(std::string_view json);
   // Makes everything written so far durable in the file.
@@ -89,6 +115,11 @@ StatusOr<TimeSeries> read_observable(const std::string& path, std::string_view n
 StatusOr<std::vector<std::string>> list_observables(const std::string& path);
 // /parameters/job_spec_json.
 StatusOr<std::string> read_parameters_json(const std::string& path);
+// A dataset written by write_scalar / write_string.
+StatusOr<double> read_scalar(const std::string& path, std::string_view dataset);
+StatusOr<std::string> read_string(const std::string& path, std::string_view dataset);
+// Frames stored for /fields/<name> (0 when there is no such field).
+StatusOr<int> count_field_frames(const std::string& path, std::string_view name);
 // Frame `frame` of /particles/<group>/position/value as 3 * N doubles, with its step and time.
 struct PositionFrame {
   std::int64_t step = 0;

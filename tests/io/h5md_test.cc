@@ -173,6 +173,78 @@ TEST_F(H5mdTest, XdmfIsValidXmlNamingExistingDatasets) {
   EXPECT_EQ(std::distance(std::sregex_iterator(xml.begin(), xml.end(), grid), std::sregex_iterator()), 3);
 }
 
+// A vector field on a uniform grid (the fluid velocity of a flow job): the
+// components land interleaved in [nz][ny][nx][3] frames, and the XDMF names
+// every frame beside the cell frames.
+TEST_F(H5mdTest, VectorFieldFramesAndXdmfBesideTheCell) {
+  const std::string path = (dir_ / "flow.h5").string();
+  UniformGrid grid;
+  grid.nx = 4;
+  grid.ny = 3;
+  grid.nz = 2;
+  grid.spacing_m = 1e-6;
+  for (double& o : grid.origin_m) o = 0.5e-6;
+  const std::size_t nodes = 24;
+  {
+    auto writer = H5mdWriter::create(path);
+    ASSERT_TRUE(writer.ok());
+    ASSERT_TRUE((*writer)->write_tetrahedra("cell", tets(), {}).ok());
+    for (int frame = 0; frame < 2; ++frame) {
+      std::vector<double> x(nodes), y(nodes), z(nodes);
+      for (std::size_t n = 0; n < nodes; ++n) {
+        x[n] = 1.0 * n + frame;  // exact in float32
+        y[n] = -2.0 * n;
+        z[n] = 0.5 * n;
+      }
+      ASSERT_TRUE((*writer)->append_positions("cell", 10 * frame, 0.1 * frame, reference()).ok());
+      ASSERT_TRUE(
+          (*writer)->append_vector_field("fluid_velocity", 10 * frame, 0.1 * frame, grid, x, y, z).ok());
+    }
+    UniformGrid other = grid;
+    other.nx = 5;
+    const std::vector<double> wrong(30, 0.0);
+    EXPECT_EQ((*writer)->append_vector_field("fluid_velocity", 30, 0.3, other, wrong, wrong, wrong).code(),
+              StatusCode::kInvalidArgument);
+    ASSERT_TRUE((*writer)->write_scalar("/summary/steady_taylor_deformation", 0.25, "1").ok());
+    ASSERT_TRUE((*writer)->write_string("/summary/stop", "steady").ok());
+    ASSERT_TRUE((*writer)->close().ok());
+  }
+  auto frames = count_field_frames(path, "fluid_velocity");
+  ASSERT_TRUE(frames.ok());
+  EXPECT_EQ(*frames, 2);
+  EXPECT_EQ(*count_field_frames(path, "absent"), 0);
+  EXPECT_EQ(*read_scalar(path, "/summary/steady_taylor_deformation"), 0.25);
+  EXPECT_EQ(*read_string(path, "/summary/stop"), "steady");
+
+  // Node (i, j, k) = (1, 2, 1) is element 1 + 4 (2 + 3 * 1) = 21 of frame 1.
+  hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  hid_t dataset = H5Dopen2(file, "/fields/fluid_velocity/frame_000001", H5P_DEFAULT);
+  ASSERT_GE(dataset, 0);
+  std::vector<float> values(nodes * 3);
+  ASSERT_GE(H5Dread(dataset, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  H5Dclose(dataset);
+  H5Fclose(file);
+  EXPECT_EQ(values[21 * 3 + 0], 22.0f);
+  EXPECT_EQ(values[21 * 3 + 1], -42.0f);
+  EXPECT_EQ(values[21 * 3 + 2], 10.5f);
+
+  const std::string xdmf = (dir_ / "flow.xdmf").string();
+  ASSERT_TRUE(write_xdmf(path, xdmf).ok());
+  int code = 0;
+  const std::string lint = run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + xdmf, &code);
+  EXPECT_EQ(code, 0) << lint;
+  std::ifstream in(xdmf);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string xml = text.str();
+  EXPECT_NE(xml.find("TopologyType=\"3DCoRectMesh\" Dimensions=\"2 3 4\""), std::string::npos) << xml;
+  EXPECT_NE(xml.find(">flow.h5:/fields/fluid_velocity/frame_000001</DataItem>"), std::string::npos) << xml;
+  EXPECT_NE(xml.find(">flow.h5:/xdmf/cell/frame_000001</DataItem>"), std::string::npos) << xml;
+  const std::regex grid_re(R"(GridType="Uniform")");
+  EXPECT_EQ(std::distance(std::sregex_iterator(xml.begin(), xml.end(), grid_re), std::sregex_iterator()), 4);
+}
+
 TEST_F(H5mdTest, KilledWriterLeavesReadableFile) {
   const std::string path = (dir_ / "killed.h5").string();
   const pid_t child = fork();

@@ -304,13 +304,53 @@ TEST(JobRunnerTest, StopsWhenAskedAndKeepsWhatWasComputed) {
   fs::remove(path);
 }
 
-TEST(JobRunnerTest, ShearFlowIsOneCaseNotYetImplemented) {
+// The runner's flow case: an invalid spec is refused naming the field, a
+// tiny valid one runs in-process, reports every sample with increasing strain
+// and writes them, the trajectory and the summary.
+TEST(JobRunnerTest, ShearFlowRunsAndWritesItsResult) {
   v1::JobSpec spec;
   spec.mutable_shear_flow()->set_fluid_viscosity_pa_s(1e-3);
   worker::RunOptions options;
-  options.result_path = (fs::temp_directory_path() / "cellflow_runner_flow.h5").string();
-  EXPECT_EQ(worker::run_job(spec, options, {}).status.code(), StatusCode::kFailedPrecondition);
+  options.result_path =
+      (fs::temp_directory_path() / ("cellflow_runner_flow_" + std::to_string(::getpid()) + ".h5")).string();
+  const worker::RunOutcome refused = worker::run_job(spec, options, {});
+  EXPECT_EQ(refused.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status.message().find("shear_flow.cell"), std::string::npos)
+      << refused.status.to_string();
   EXPECT_EQ(worker::run_job(v1::JobSpec(), options, {}).status.code(), StatusCode::kInvalidArgument);
+
+  auto* flow = spec.mutable_shear_flow();
+  flow->mutable_cell()->set_radius_m(4e-6);
+  flow->mutable_cell()->mutable_material()->set_youngs_modulus_pa(50.0);
+  flow->mutable_cell()->set_target_vertex_count(300);
+  flow->set_capillary_number(0.2);
+  auto* n = flow->mutable_numerics();
+  n->set_cells_per_radius(3);
+  n->set_box_x_radii(5);
+  n->set_box_y_radii(6);
+  n->set_box_z_radii(4);
+  n->set_max_strain(1.0);
+  options.threads = 1;
+  std::vector<v1::DeformationSample> samples;
+  worker::JobEvents events;
+  events.deformation_sample = [&](const v1::DeformationSample& s) { samples.push_back(s); };
+  const worker::RunOutcome outcome = worker::run_job(spec, options, events);
+  ASSERT_TRUE(outcome.status.ok()) << outcome.status.to_string();
+  EXPECT_TRUE(outcome.result_written);
+  ASSERT_EQ(outcome.samples, static_cast<int>(samples.size()));
+  ASSERT_GE(samples.size(), 10u);  // every 0.1 strain to 1
+  for (std::size_t i = 1; i < samples.size(); ++i) EXPECT_GT(samples[i].strain(), samples[i - 1].strain());
+  auto strain = io::read_observable(options.result_path, "strain");
+  ASSERT_TRUE(strain.ok()) << strain.status().to_string();
+  ASSERT_EQ(strain->value.size(), samples.size());
+  EXPECT_EQ(strain->value.back(), samples.back().strain());
+  // Snapshots every strain unit (the default): t = 0 and t = 1.
+  auto frames = io::count_position_frames(options.result_path, "cell");
+  ASSERT_TRUE(frames.ok());
+  EXPECT_EQ(*frames, 2);
+  EXPECT_EQ(*io::count_field_frames(options.result_path, "fluid_velocity"), 0);  // not asked for
+  EXPECT_EQ(*io::read_string(options.result_path, "/summary/stop"), "max_strain");
+  fs::remove(options.result_path);
 }
 
 }  // namespace

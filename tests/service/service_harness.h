@@ -9,12 +9,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -211,6 +213,52 @@ class ServiceTest : public ::testing::Test {
   int port_ = 0;
   std::string address_;
   std::unique_ptr<client::Client> client_;
+};
+
+// Collects a job's events on a thread until its terminal state.
+class Watcher {
+ public:
+  Watcher(client::Client& client, std::string job_id) {
+    thread_ = std::thread([this, &client, job_id] {
+      status_ = client.watch(job_id, 0, [this](const v1::JobEvent& event) {
+        std::lock_guard lock(mutex_);
+        events_.push_back(event);
+        return true;
+      });
+      done_ = true;
+    });
+  }
+  ~Watcher() { join(); }
+  void join() {
+    if (thread_.joinable()) thread_.join();
+  }
+  std::vector<v1::JobEvent> events() {
+    std::lock_guard lock(mutex_);
+    return events_;
+  }
+  // Indices of the samples seen: force samples (quasi-static) and deformation samples (flow).
+  std::vector<int> sample_indices() {
+    std::vector<int> out;
+    for (const auto& e : events()) {
+      if (e.has_force_sample()) out.push_back(e.force_sample().index());
+      if (e.has_deformation_sample()) out.push_back(e.deformation_sample().index());
+    }
+    return out;
+  }
+  int max_sample_index() {
+    int best = -1;
+    for (int i : sample_indices()) best = std::max(best, i);
+    return best;
+  }
+  const grpc::Status& status() const { return status_; }
+  bool done() const { return done_; }
+
+ private:
+  std::mutex mutex_;
+  std::vector<v1::JobEvent> events_;
+  grpc::Status status_;
+  std::atomic<bool> done_{false};
+  std::thread thread_;
 };
 
 // A small compression job: a few hundred vertices and few load points, so

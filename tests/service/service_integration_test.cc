@@ -20,50 +20,6 @@
 namespace cellflow::testing {
 namespace {
 
-// Collects a job's events on a thread until its terminal state.
-class Watcher {
- public:
-  Watcher(client::Client& client, std::string job_id) {
-    thread_ = std::thread([this, &client, job_id] {
-      status_ = client.watch(job_id, 0, [this](const v1::JobEvent& event) {
-        std::lock_guard lock(mutex_);
-        events_.push_back(event);
-        return true;
-      });
-      done_ = true;
-    });
-  }
-  ~Watcher() { join(); }
-  void join() {
-    if (thread_.joinable()) thread_.join();
-  }
-  std::vector<v1::JobEvent> events() {
-    std::lock_guard lock(mutex_);
-    return events_;
-  }
-  std::vector<int> sample_indices() {
-    std::vector<int> out;
-    for (const auto& e : events()) {
-      if (e.has_force_sample()) out.push_back(e.force_sample().index());
-    }
-    return out;
-  }
-  int max_sample_index() {
-    int best = -1;
-    for (int i : sample_indices()) best = std::max(best, i);
-    return best;
-  }
-  const grpc::Status& status() const { return status_; }
-  bool done() const { return done_; }
-
- private:
-  std::mutex mutex_;
-  std::vector<v1::JobEvent> events_;
-  grpc::Status status_;
-  std::atomic<bool> done_{false};
-  std::thread thread_;
-};
-
 double relative_difference(double a, double b) {
   const double scale = std::max(std::fabs(a), std::fabs(b));
   return scale == 0.0 ? 0.0 : std::fabs(a - b) / scale;
@@ -367,16 +323,16 @@ TEST_F(ServiceTest, BadSpecsAreRefusedNamingTheFieldAndNothingIsQueued) {
       {"probe radius zero", [&](v1::JobSpec& s) { indentation(s)->set_probe_radius_m(0); }, "probe_radius_m"},
       {"indentation too deep", [&](v1::JobSpec& s) { indentation(s)->set_max_indentation_m(1e-5); },
        "max_indentation_m"},
-      {"shear flow (no scene yet)",
+      {"shear flow with negative viscosity (more in shear_flow_service_test.cc)",
        [](v1::JobSpec& s) {
          v1::JobSpec fresh;
          auto* flow = fresh.mutable_shear_flow();
          *flow->mutable_cell() = s.compression().cell();
-         flow->set_fluid_viscosity_pa_s(1e-3);
+         flow->set_fluid_viscosity_pa_s(-1e-3);
          flow->set_shear_rate_per_s(10);
          s = fresh;
        },
-       "shear_flow"},
+       "shear_flow.fluid_viscosity_pa_s"},
   };
   ASSERT_GE(table.size(), 15u);
   for (const BadSpec& bad : table) {

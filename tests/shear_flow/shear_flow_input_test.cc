@@ -23,6 +23,7 @@ ShearFlowParams base_params() {
   p.cell.target_vertex_count = 400;
   p.capillary_number = 0.05;
   p.numerics.cells_per_radius = 4.0;
+  p.numerics.threads = 1;  // beside other tests on a shared machine
   return p;
 }
 
@@ -169,6 +170,32 @@ TEST(ShearFlowRun, RefusesACellTooStiffForTheExplicitUpdate) {
   EXPECT_NE(r.status.message().find("shear_flow.numerics.cells_per_radius"), std::string::npos);
   EXPECT_GT(r.stiffness_ratio, default_stiffness_limit(ibm::Kernel::kPeskin4));
   EXPECT_TRUE(r.samples.empty());
+}
+
+// Forcing the explicit update past its stability limit (ratio 8.2 at
+// Ca = 0.001, allowed by max_stiffness_ratio = 100) must end as a numerical
+// failure naming the time step and the cause, keep the samples, and hand
+// back the last good state.
+TEST(ShearFlowRun, BlowUpEndsAsNumericalFailureNamingTheStep) {
+  ShearFlowParams p = base_params();
+  p.cell.target_vertex_count = 1000;
+  p.capillary_number = 0.001;
+  p.numerics.max_stiffness_ratio = 100.0;
+  p.numerics.max_strain = 2.0;
+  int last_good_index = -1;
+  ShearFlowCallbacks cb;
+  cb.on_positions = [&](int index, double, std::span<const double> x) {
+    last_good_index = index;
+    for (double v : x) ASSERT_TRUE(std::isfinite(v));
+  };
+  const ShearFlowResult r = run_shear_flow(p, cb);
+  EXPECT_EQ(r.status.code(), StatusCode::kNumericalFailure) << r.status.to_string();
+  EXPECT_EQ(r.stop, ShearFlowStop::kFailed);
+  EXPECT_NE(r.status.message().find("time step "), std::string::npos) << r.status.message();
+  EXPECT_GT(r.stiffness_ratio, 5.0);
+  EXPECT_FALSE(r.samples.empty());
+  EXPECT_GT(r.time_steps, 0);
+  EXPECT_GE(last_good_index, 1);  // t = 0 snapshot, then the last good state
 }
 
 // A tiny run (0.3 strain units at 4 cells per radius): callbacks in order,

@@ -11,9 +11,9 @@
 //   the immersed boundary's kernel width makes D converge from above, about
 //   as 0.38 dx/R + 5.7 (h/R)(dx/R) (h the mesh spacing).
 // The default suite runs the coarse variant (4 cells per radius, 1000
-// vertices) with the band the study gives for it, D / (5/4 Ca) in [1, 1.5];
+// vertices) with the band the study gives for it, D / (5/4 Ca) in [1, 1.6];
 // the build with SHEAR_FLOW_LONG (label long) runs 12 cells per radius and
-// 8000 vertices against the full target, 10 %.
+// 8000 vertices (predicted +8 %) against the full target, 10 %.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -36,10 +36,10 @@ constexpr double kMaxRatioD = 1.0 + kMaxDeviationD;
 #else
 constexpr double kCellsPerRadius = 4.0;
 constexpr int kVertices = 1000;
-// Coarse variant: the study above puts D / (5/4 Ca) at 1.41 here (D
-// converges from above).
+// Coarse variant: the study above puts D / (5/4 Ca) at 1.41 (Ca = 0.05) and
+// 1.46 (Ca = 0.02) here; D converges from above.
 constexpr double kMinRatioD = 1.0;
-constexpr double kMaxRatioD = 1.5;
+constexpr double kMaxRatioD = 1.6;
 #endif
 constexpr double kMaxInclinationErrorDeg = 3.0;
 
@@ -53,15 +53,64 @@ ShearFlowParams flow_params(double capillary_number) {
   p.capillary_number = capillary_number;
   p.numerics.cells_per_radius = kCellsPerRadius;
   p.numerics.steady_window_strain = 1.0;
+  // One thread: the tests run beside others, where OpenMP barriers of a
+  // second thread that has no core to itself cost more than they gain.
+  p.numerics.threads = 1;
   return p;
 }
 
+// Steady D against (5/4) Ca and the inclination against pi/4 - (5/4) Ca.
+void check_small_capillary_number(double ca) {
+  ShearFlowParams p = flow_params(ca);
+  p.numerics.max_strain = 4.0;
+  const ShearFlowResult r = run_shear_flow(p);
+  ASSERT_TRUE(r.status.ok()) << r.status.to_string();
+  ASSERT_TRUE(r.stop == ShearFlowStop::kSteady || r.stop == ShearFlowStop::kMaxStrain);
+  const double d_ref = small_ca_taylor_deformation(ca);
+  const double theta_ref = small_ca_inclination_deg_lambda1(ca);
+  const double ratio = r.steady_taylor_deformation / d_ref;
+  EXPECT_GE(ratio, kMinRatioD) << "D = " << r.steady_taylor_deformation << ", (5/4) Ca = " << d_ref;
+  EXPECT_LE(ratio, kMaxRatioD) << "D = " << r.steady_taylor_deformation << ", (5/4) Ca = " << d_ref;
+  EXPECT_NEAR(r.steady_inclination_deg, theta_ref, kMaxInclinationErrorDeg);
+  // The window mean is steady: D changed by less than 2 % over the last strain unit.
+  EXPECT_LT(r.steady_relative_change, 0.02);
+  std::printf(
+      "Ca %.3g (%g cells/R, %d vertices): D %.5f = %.3f x (5/4) Ca, inclination %.2f deg (ref %.2f), "
+      "tank treading %.4f gammadot, stop %s at strain %.2f, %.1f s\n",
+      ca, kCellsPerRadius, kVertices, r.steady_taylor_deformation, ratio, r.steady_inclination_deg, theta_ref,
+      r.tank_treading_frequency_per_s / r.setup.shear_rate_per_s, std::string(stop_name(r.stop)).c_str(),
+      r.samples.back().strain_units, r.wall_time_s);
+}
+
+std::string ca_name(const ::testing::TestParamInfo<double>& param_info) {
+  return param_info.param == 0.02 ? std::string("Ca0p02") : std::string("Ca0p05");
+}
+
+// The long build registers its suite under another name, so that ctest
+// (which knows tests by name) keeps the two variants and their labels apart.
+#ifdef SHEAR_FLOW_LONG
+class SmallCapillaryNumberLong : public ::testing::TestWithParam<double> {};
+TEST_P(SmallCapillaryNumberLong, SteadyDeformationAndInclination) {
+  check_small_capillary_number(GetParam());
+}
+INSTANTIATE_TEST_SUITE_P(Roscoe, SmallCapillaryNumberLong, ::testing::Values(0.02, 0.05), ca_name);
+#else
+class SmallCapillaryNumber : public ::testing::TestWithParam<double> {};
+TEST_P(SmallCapillaryNumber, SteadyDeformationAndInclination) {
+  check_small_capillary_number(GetParam());
+}
+INSTANTIATE_TEST_SUITE_P(Roscoe, SmallCapillaryNumber, ::testing::Values(0.02, 0.05), ca_name);
+#endif
+
+#ifndef SHEAR_FLOW_LONG
 // A stiff cell (Ca = 0.001) at the centre of the Couette flow: it must stay
 // centred (drift below 1 % of R) and turn like a rigid sphere, at gammadot / 2
 // within 5 %. Re_p = 0.02 keeps the explicit update stable (stiffness ratio
 // 1.6 against the peskin4 limit 2.5; at Re_p = 0.1 it is 8.2 and blows up).
 TEST(ShearFlowValidation, StiffCellStaysCentredAndRotatesAtHalfTheShearRate) {
   ShearFlowParams p = flow_params(0.001);
+  p.numerics.cells_per_radius = 4.0;
+  p.cell.target_vertex_count = 1000;
   p.numerics.target_reynolds_number = 0.02;
   p.numerics.max_strain = 1.5;
   p.numerics.steady_tolerance = 0.0;  // run the full 1.5 strain units
@@ -84,38 +133,6 @@ TEST(ShearFlowValidation, StiffCellStaysCentredAndRotatesAtHalfTheShearRate) {
               drift / kRadius, rotation, r.steady_taylor_deformation, r.stiffness_ratio, r.wall_time_s);
 }
 
-class SmallCapillaryNumber : public ::testing::TestWithParam<double> {};
-
-// Steady D against (5/4) Ca and the inclination against pi/4 - (5/4) Ca.
-TEST_P(SmallCapillaryNumber, SteadyDeformationAndInclination) {
-  const double ca = GetParam();
-  ShearFlowParams p = flow_params(ca);
-  p.numerics.max_strain = 4.0;
-  const ShearFlowResult r = run_shear_flow(p);
-  ASSERT_TRUE(r.status.ok()) << r.status.to_string();
-  ASSERT_TRUE(r.stop == ShearFlowStop::kSteady || r.stop == ShearFlowStop::kMaxStrain);
-  const double d_ref = small_ca_taylor_deformation(ca);
-  const double theta_ref = small_ca_inclination_deg_lambda1(ca);
-  const double ratio = r.steady_taylor_deformation / d_ref;
-  EXPECT_GE(ratio, kMinRatioD) << "D = " << r.steady_taylor_deformation << ", (5/4) Ca = " << d_ref;
-  EXPECT_LE(ratio, kMaxRatioD) << "D = " << r.steady_taylor_deformation << ", (5/4) Ca = " << d_ref;
-  EXPECT_NEAR(r.steady_inclination_deg, theta_ref, kMaxInclinationErrorDeg);
-  // The window mean is steady: D changed by less than 2 % over the last strain unit.
-  EXPECT_LT(r.steady_relative_change, 0.02);
-  std::printf(
-      "Ca %.3g (%g cells/R, %d vertices): D %.5f = %.3f x (5/4) Ca, inclination %.2f deg (ref %.2f), "
-      "tank treading %.4f gammadot, stop %s at strain %.2f, %.1f s\n",
-      ca, kCellsPerRadius, kVertices, r.steady_taylor_deformation, ratio, r.steady_inclination_deg, theta_ref,
-      r.tank_treading_frequency_per_s / r.setup.shear_rate_per_s, std::string(stop_name(r.stop)).c_str(),
-      r.samples.back().strain_units, r.wall_time_s);
-}
-
-INSTANTIATE_TEST_SUITE_P(Roscoe, SmallCapillaryNumber, ::testing::Values(0.02, 0.05),
-                         [](const ::testing::TestParamInfo<double>& param_info) {
-                           return param_info.param == 0.02 ? std::string("Ca0p02") : std::string("Ca0p05");
-                         });
-
-#ifndef SHEAR_FLOW_LONG
 // Refining the lattice moves D towards (5/4) Ca: 4 -> 6 cells per radius must
 // cut the deviation by at least a quarter (the study: 0.41 -> 0.26).
 TEST(ShearFlowValidation, RefiningTheLatticeApproachesRoscoe) {
@@ -125,7 +142,7 @@ TEST(ShearFlowValidation, RefiningTheLatticeApproachesRoscoe) {
   for (int i = 0; i < 2; ++i) {
     ShearFlowParams p = flow_params(ca);
     p.numerics.cells_per_radius = resolutions[i];
-    p.numerics.max_strain = 3.0;
+    p.numerics.max_strain = 2.5;
     p.numerics.steady_tolerance = 0.0;
     const ShearFlowResult r = run_shear_flow(p);
     ASSERT_TRUE(r.status.ok()) << r.status.to_string();

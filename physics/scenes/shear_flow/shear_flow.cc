@@ -59,8 +59,9 @@ constexpr double kRunawaySpeedLattice = 0.2;
 // the x-y plane about the centroid is well defined.
 constexpr double kTankTreadBand = 0.7;
 
-// Vertex count from which the coupling kernels use OpenMP threads.
-constexpr std::size_t kParallelVertices = 20000;
+// Vertex count from which the coupling kernels use OpenMP threads (3000
+// vertices: elastic forces 0.56 ms serial, 0.37 ms on two free cores).
+constexpr std::size_t kParallelVertices = 2000;
 
 Status validate_cell(const CellParams& cell, const std::string& prefix) {
   std::string message;
@@ -379,6 +380,18 @@ void summarise(const Run& run, ShearFlowResult& result) {
   result.steady_relative_change =
       result.steady_taylor_deformation > 0.0 ? (d_max - d_min) / result.steady_taylor_deformation : 0.0;
   result.tank_treading_frequency_per_s = result.samples[last].tank_treading_frequency_per_s;
+
+  // Thickness 2 a1 against the kernel width kernel_width dx.
+  const double kernel_m = ibm::kernel_width(n.ibm_kernel) * run.plan.units.dx_m();
+  result.thickness_over_kernel = 2.0 * result.samples[last].semi_axes_m[0] / kernel_m;
+  if (result.thickness_over_kernel < kMinThicknessOverKernel) {
+    result.warnings.push_back(
+        "under-resolved: the cell's thickness 2 a1 = " + num(2.0 * result.samples[last].semi_axes_m[0]) +
+        " m is " + num(result.thickness_over_kernel) + " kernel widths (below " +
+        num(kMinThicknessOverKernel) +
+        "), so D and the strain are overestimated; raise shear_flow.numerics.cells_per_radius to at least " +
+        num(std::ceil(n.cells_per_radius * kMinThicknessOverKernel / result.thickness_over_kernel)));
+  }
 }
 
 // True when D over the last full window changed by less than the tolerance.
@@ -416,8 +429,8 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
   const ibm::Kernel kernel = n.ibm_kernel;
   const int width = ibm::kernel_width(kernel);
   const int threads = n.threads;
-  // The coupling kernels touch ~10^3 vertices: serial, since OpenMP fork/join
-  // costs more than the work there (bench/shear_flow).
+  // Below kParallelVertices the coupling kernels run serial: OpenMP fork/join
+  // costs more than the work (bench/shear_flow: 1000 vertices, 0.4 ms serial).
   const int coupling_threads = run.mesh.num_vertices() >= kParallelVertices ? threads : 1;
   const double dx = run.plan.units.dx_m();
   ImmersedCell& cell = run.cell;

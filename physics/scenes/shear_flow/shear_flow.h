@@ -48,11 +48,13 @@
 
 namespace cellflow::scenes {
 
-// Default mesh of a flow cell: the resolution study (bench/shear_flow) shows
-// that 1000 vertices (mesh spacing ~ 1.2 lattice spacings at the default
-// 6 cells per radius) resolve D to the accuracy of the lattice; finer meshes
-// cost elastic work without improving D.
-inline constexpr int kFlowDefaultVertexCount = 1000;
+// Default mesh of a flow cell. The resolution study (bench/shear_flow,
+// Ca = 0.05, peskin4, nu = 0.48) puts the deviation of D from (5/4) Ca at
+// about 0.38 dx/R + 5.7 (h/R)(dx/R), h the mesh spacing: at the default 6
+// cells per radius, 1000 vertices (h = 0.21 R) give +26 %, 3000 (h = 0.14 R)
+// +20 %, for 30 % more time per step. The bulk stiffness couples the mesh
+// term: at nu = 0.3 the mesh dependence is three times weaker.
+inline constexpr int kFlowDefaultVertexCount = 3000;
 inline CellParams flow_cell_defaults() {
   CellParams cell;
   cell.target_vertex_count = kFlowDefaultVertexCount;
@@ -62,12 +64,16 @@ inline CellParams flow_cell_defaults() {
 // Numerical options of the flow scene: each trades time for accuracy or
 // guards a stability limit. Field names follow proto ShearFlowNumerics.
 struct ShearFlowNumerics {
-  double cells_per_radius = 6.0;  // lattice nodes per cell radius R / dx, in [2, 64]
-  double box_x_radii = 10.0;      // box length along the flow / R (periodic)
-  double box_y_radii = 15.0;      // wall distance H / R
-  double box_z_radii = 5.0;       // box depth along the vorticity / R (periodic)
-  double relaxation_time = 1.0;   // LB tau in (0.5, 3]; nu_lb = (tau - 1/2) / 3
-  double max_mach = 0.1;          // refuse u_wall / c_s above this, in (0, 0.3]
+  // Lattice nodes per cell radius R / dx, in [2, 64]. 6 (bench/shear_flow,
+  // Ca = 0.2, 3000 vertices, one core): steady in ~100 s with D 14 % above
+  // Roscoe; 4: 15 s, +22 %; 8: 250 s, +10 %; 12 cells and 8000 vertices put
+  // D within 8 % of (5/4) Ca at Ca = 0.02 and 0.05.
+  double cells_per_radius = 6.0;
+  double box_x_radii = 10.0;     // box length along the flow / R (periodic)
+  double box_y_radii = 15.0;     // wall distance H / R
+  double box_z_radii = 5.0;      // box depth along the vorticity / R (periodic)
+  double relaxation_time = 1.0;  // LB tau in (0.5, 3]; nu_lb = (tau - 1/2) / 3
+  double max_mach = 0.1;         // refuse u_wall / c_s above this, in (0, 0.3]
   // Raise the simulated fluid density until Re_p = rho gammadot R^2 / eta
   // reaches this value (only when the physical Re_p is lower); 0 = physical
   // density. In [0, 1].
@@ -184,6 +190,8 @@ struct ShearFlowCallbacks {
   std::function<void(const FluidVelocitySnapshot&)> on_fluid_velocity;
 };
 
+inline constexpr double kMinThicknessOverKernel = 1.5;
+
 enum class ShearFlowStop {
   kSteady,     // D steady within numerics.steady_tolerance over the window
   kMaxStrain,  // reached numerics.max_strain
@@ -208,6 +216,13 @@ struct ShearFlowResult {
   // Stability of the explicit update: k_max / (6 pi eta_lb dx), lattice units.
   double stiffness_ratio = 0.0;
   double mesh_spacing_over_dx = 0.0;  // mean edge length / dx
+  // The cell's thickness 2 a1 (minor axis of the equivalent ellipsoid, last
+  // sample) over the kernel width (ibm::kernel_width dx). Below
+  // kMinThicknessOverKernel the kernel does not resolve the thickness: the
+  // elastic forces of the two faces cancel in the fluid and D and the strain
+  // come out too large (Ca >= 1.6 at 6 cells per radius); a warning says so.
+  double thickness_over_kernel = 0.0;
+  std::vector<std::string> warnings;
   std::int64_t time_steps = 0;
   double wall_time_s = 0.0;
   // Wall time split (seconds): elastic forces, spreading + interpolation,

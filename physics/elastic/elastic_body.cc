@@ -38,9 +38,12 @@ kernel::TetParams tet_params(const ElasticBody& body, std::int64_t t) {
 // at a time: the inverse cube root is a long dependency chain, and in a
 // tet-after-tet loop it stalls everything after it; over a block its
 // iterations are independent and overlap.
+// With tet_pressure (kNodalAverage) the tets carry no kappa term; their
+// stress gets tet_pressure[t] cof(F) instead, and the volumetric energy is
+// summed per vertex by volumetric_pressures.
 template <bool kMooneyRivlin, bool kForces>
 double evaluate_range(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
-                      std::int64_t end, std::int64_t& first_inverted) {
+                      std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure) {
   constexpr int kBlock = 16;
   const std::int32_t* tets = body.tets.data();
   const double* b_matrix = body.b_matrix.data();
@@ -70,8 +73,13 @@ double evaluate_range(const ElasticBody& body, const double* y, double* forces, 
     for (int lane = 0; lane < size; ++lane) {
       const std::int64_t t = first + lane;
       kernel::TetStress& s = block[lane];
-      kernel::stress_from_gradient<kMooneyRivlin>(mu1[t], kMooneyRivlin ? mu2[t] : 0.0, kappa[t], j_m13[lane],
-                                                  s);
+      if (tet_pressure == nullptr) {
+        kernel::stress_from_gradient<kMooneyRivlin>(mu1[t], kMooneyRivlin ? mu2[t] : 0.0, kappa[t],
+                                                    j_m13[lane], s);
+      } else {
+        kernel::stress_from_gradient<kMooneyRivlin>(mu1[t], kMooneyRivlin ? mu2[t] : 0.0, 0.0, j_m13[lane], s,
+                                                    tet_pressure[t]);
+      }
       if constexpr (kForces) {
         kernel::forces_from_stress(b_matrix + 9 * t, volume[t], s.stress, block_forces[lane]);
       }
@@ -97,6 +105,60 @@ double evaluate_range(const ElasticBody& body, const double* y, double* forces, 
   return energy;
 }
 
+// Deformed volume v = det[y1 - y4, y2 - y4, y3 - y4] / 6 of a tetrahedron.
+double deformed_volume(const double* y, const std::int32_t* v) {
+  const double* y3 = y + 3 * static_cast<std::int64_t>(v[3]);
+  double d[9];
+  for (int k = 0; k < 3; ++k) {
+    const double* yk = y + 3 * static_cast<std::int64_t>(v[k]);
+    for (int i = 0; i < 3; ++i) d[3 * i + k] = yk[i] - y3[i];
+  }
+  return (d[0] * (d[4] * d[8] - d[5] * d[7]) + d[1] * (d[5] * d[6] - d[3] * d[8]) +
+          d[2] * (d[3] * d[7] - d[4] * d[6])) /
+         6.0;
+}
+
+// kNodalAverage: the vertex pressures p_a = (kappa V)_a / V_a (Jbar_a - 1),
+// Jbar_a = v_a / V_a with v_a = sum_{t at a} v_t / 4, and per tet the mean of
+// its four vertices' pressures (tet_pressure, one per tet). Returns the
+// volumetric energy sum_a (kappa V)_a / 2 (Jbar_a - 1)^2. Its gradient is
+// sum_a p_a dv_a/dy = sum_t tet_pressure_t V0_t dJ_t/dy, so the tet stress
+// takes tet_pressure_t cof(F) (dJ/dF = cof F).
+double volumetric_pressures(const ElasticBody& body, const double* y, int team,
+                            std::vector<double>& tet_pressure) {
+  const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body.num_vertices);
+  const std::int32_t* tets = body.tets.data();
+  std::vector<double> tet_volume(static_cast<std::size_t>(num_tets));
+  std::vector<double> vertex_pressure(static_cast<std::size_t>(num_vertices), 0.0);
+  tet_pressure.resize(static_cast<std::size_t>(num_tets));
+  double energy = 0.0;
+#pragma omp parallel num_threads(team) reduction(+ : energy)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t t = 0; t < num_tets; ++t) tet_volume[t] = deformed_volume(y, tets + 4 * t);
+#pragma omp for schedule(static)
+    for (std::int64_t a = 0; a < num_vertices; ++a) {
+      const double volume = body.vertex_volume_m3[a];
+      if (volume <= 0.0) continue;  // a vertex of no tet
+      double deformed = 0.0;
+      for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k)
+        deformed += tet_volume[body.vertex_tets[k]];
+      // Jbar_a - 1 = v_a / V_a - 1
+      const double excess = 0.25 * deformed / volume - 1.0;
+      vertex_pressure[a] = body.vertex_bulk_volume_j[a] / volume * excess;
+      energy += 0.5 * body.vertex_bulk_volume_j[a] * excess * excess;
+    }
+#pragma omp for schedule(static)
+    for (std::int64_t t = 0; t < num_tets; ++t) {
+      const std::int32_t* v = tets + 4 * t;
+      tet_pressure[t] = 0.25 * (vertex_pressure[v[0]] + vertex_pressure[v[1]] + vertex_pressure[v[2]] +
+                                vertex_pressure[v[3]]);
+    }
+  }
+  return energy;
+}
+
 // Tets are split into one contiguous range per thread. Thread 0 scatters into
 // forces_n, the others into private buffers that are added afterwards: no two
 // threads write the same memory, and every thread streams its tets in order
@@ -108,8 +170,15 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
   const int team = team_size(threads, num_tets, kMinForceTetsPerThread);
   ElasticEvaluation result;
   std::int64_t first_inverted = kNoTet;
+  std::vector<double> pressure;
+  double volumetric_energy = 0.0;
+  if (body.volumetric == VolumetricTerm::kNodalAverage) {
+    volumetric_energy = volumetric_pressures(body, y, team, pressure);
+  }
+  const double* tet_pressure = pressure.empty() ? nullptr : pressure.data();
   if (team == 1) {
-    result.energy_j = evaluate_range<kMooneyRivlin, kForces>(body, y, forces, 0, num_tets, first_inverted);
+    result.energy_j =
+        evaluate_range<kMooneyRivlin, kForces>(body, y, forces, 0, num_tets, first_inverted, tet_pressure);
   } else {
     std::vector<double> buffers;
     if constexpr (kForces) buffers.assign(static_cast<std::size_t>((team - 1) * num_dofs), 0.0);
@@ -122,7 +191,7 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
       if constexpr (kForces) out = rank == 0 ? forces : buffers.data() + (rank - 1) * num_dofs;
       const std::int64_t begin = num_tets * rank / size;
       const std::int64_t end = num_tets * (rank + 1) / size;
-      energy = evaluate_range<kMooneyRivlin, kForces>(body, y, out, begin, end, first_inverted);
+      energy = evaluate_range<kMooneyRivlin, kForces>(body, y, out, begin, end, first_inverted, tet_pressure);
       if constexpr (kForces) {
         if (size > 1) {
 #pragma omp barrier
@@ -137,6 +206,7 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
     }
     result.energy_j = energy;
   }
+  result.energy_j += volumetric_energy;
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;
 }
@@ -157,7 +227,8 @@ void vertex_tets(std::span<const std::int32_t> tets, std::size_t num_vertices,
 
 }  // namespace
 
-StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<const Material> materials) {
+StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<const Material> materials,
+                                        VolumetricTerm volumetric) {
   const std::size_t num_vertices = mesh.num_vertices();
   const std::size_t num_tets = mesh.num_tets();
   if (mesh.positions_m.size() % 3 != 0 || mesh.tets.size() % 4 != 0) {
@@ -227,6 +298,19 @@ StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<con
   }
   body.neo_hookean =
       std::all_of(body.mu2_pa.begin(), body.mu2_pa.end(), [](double mu2) { return mu2 == 0.0; });
+  body.volumetric = volumetric;
+  if (volumetric == VolumetricTerm::kNodalAverage) {
+    vertex_tets(body.tets, num_vertices, body.vertex_tet_offsets, body.vertex_tets);
+    body.vertex_volume_m3.assign(num_vertices, 0.0);
+    body.vertex_bulk_volume_j.assign(num_vertices, 0.0);
+    for (std::size_t t = 0; t < num_tets; ++t) {
+      for (int a = 0; a < 4; ++a) {
+        const std::int32_t v = body.tets[4 * t + a];
+        body.vertex_volume_m3[v] += 0.25 * body.ref_volume_m3[t];
+        body.vertex_bulk_volume_j[v] += 0.25 * body.kappa_pa[t] * body.ref_volume_m3[t];
+      }
+    }
+  }
   return body;
 }
 
@@ -241,12 +325,19 @@ ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const dou
                                               std::int64_t end_tet) {
   std::int64_t first_inverted = kNoTet;
   ElasticEvaluation result;
+  // kNodalAverage: the pressures need every tet; the energy is then the
+  // range's isochoric part plus the whole volumetric energy.
+  std::vector<double> pressure;
+  if (body.volumetric == VolumetricTerm::kNodalAverage) {
+    result.energy_j = volumetric_pressures(body, positions_m, 1, pressure);
+  }
+  const double* tet_pressure = pressure.empty() ? nullptr : pressure.data();
   if (body.neo_hookean) {
-    result.energy_j =
-        evaluate_range<false, true>(body, positions_m, forces_n, begin_tet, end_tet, first_inverted);
+    result.energy_j += evaluate_range<false, true>(body, positions_m, forces_n, begin_tet, end_tet,
+                                                   first_inverted, tet_pressure);
   } else {
-    result.energy_j =
-        evaluate_range<true, true>(body, positions_m, forces_n, begin_tet, end_tet, first_inverted);
+    result.energy_j += evaluate_range<true, true>(body, positions_m, forces_n, begin_tet, end_tet,
+                                                  first_inverted, tet_pressure);
   }
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;
@@ -328,24 +419,27 @@ TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
   std::vector<std::int64_t> offsets;
   std::vector<std::int32_t> incident;
   vertex_tets(body.tets, num_vertices, offsets, incident);
-  // Sorted neighbours (itself included) of every vertex: the 3x3 blocks of a column.
-  std::vector<std::int64_t> neighbour_offsets(num_vertices + 1, 0);
-  std::vector<std::int32_t> neighbours;
+  // Sorted patch (itself and its neighbours) of every vertex.
+  std::vector<std::int64_t> patch_offsets(num_vertices + 1, 0);
+  std::vector<std::int32_t> patches;
   std::vector<std::int32_t> seen(num_vertices, -1);
   for (std::size_t v = 0; v < num_vertices; ++v) {
-    const std::size_t first = neighbours.size();
+    const std::size_t first = patches.size();
     for (std::int64_t k = offsets[v]; k < offsets[v + 1]; ++k) {
       for (int a = 0; a < 4; ++a) {
         const std::int32_t w = body.tets[4 * static_cast<std::int64_t>(incident[k]) + a];
         if (seen[w] != static_cast<std::int32_t>(v)) {
           seen[w] = static_cast<std::int32_t>(v);
-          neighbours.push_back(w);
+          patches.push_back(w);
         }
       }
     }
-    std::sort(neighbours.begin() + static_cast<std::ptrdiff_t>(first), neighbours.end());
-    neighbour_offsets[v + 1] = static_cast<std::int64_t>(neighbours.size());
+    std::sort(patches.begin() + static_cast<std::ptrdiff_t>(first), patches.end());
+    patch_offsets[v + 1] = static_cast<std::int64_t>(patches.size());
   }
+  // The 3x3 blocks of column v: the patch of v.
+  const std::vector<std::int64_t>& neighbour_offsets = patch_offsets;
+  const std::vector<std::int32_t>& neighbours = patches;
   // Column 3 v + j holds rows 3 w, 3 w + 1, 3 w + 2 for every neighbour w of v.
   using Index = Eigen::SparseMatrix<double>::StorageIndex;
   const Index size = static_cast<Index>(3 * num_vertices);
@@ -379,6 +473,32 @@ TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
       }
     }
   }
+  if (body.volumetric == VolumetricTerm::kNodalAverage) {
+    patch_offsets_ = patch_offsets;
+    patches_ = patches;
+    patch_local_.resize(4 * body.vertex_tets.size());
+    for (std::size_t a = 0; a < num_vertices; ++a) {
+      const auto begin = patches.begin() + patch_offsets[a];
+      const auto end = patches.begin() + patch_offsets[a + 1];
+      for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k) {
+        const std::int32_t* v = body.tets.data() + 4 * static_cast<std::int64_t>(body.vertex_tets[k]);
+        for (int c = 0; c < 4; ++c)
+          patch_local_[4 * k + c] = static_cast<std::int32_t>(std::lower_bound(begin, end, v[c]) - begin);
+      }
+    }
+    mirror_entry_.resize(patches.size());
+    for (std::size_t a = 0; a < num_vertices; ++a) {
+      for (std::int64_t k = patch_offsets[a]; k < patch_offsets[a + 1]; ++k) {
+        const std::int32_t w = patches[k];
+        const auto begin = patches.begin() + patch_offsets[w];
+        const auto end = patches.begin() + patch_offsets[w + 1];
+        mirror_entry_[k] = std::lower_bound(begin, end, static_cast<std::int32_t>(a)) - patches.begin();
+      }
+    }
+    g_rows_.assign(3 * patches.size(), 0.0);
+    vertex_coefficient_.assign(num_vertices, 0.0);
+    vertex_scratch_.resize(num_vertices);
+  }
   // Groups of consecutive tets: few colours (barriers) and streaming access;
   // about 256 groups so that each colour still has work for several threads.
   colouring_ = colour_tets(body.tets, num_vertices, std::clamp<std::int64_t>(num_tets / 256, 8, 512));
@@ -392,6 +512,9 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
   std::fill_n(values, stiffness_.nonZeros(), 0.0);
   const std::int32_t* tets = body.tets.data();
   const std::int64_t* slots = slot_.data();
+  const int team = team_size(threads_, num_tets, kMinTangentTetsPerThread);
+  const bool nodal = body.volumetric == VolumetricTerm::kNodalAverage;
+  const double volumetric_energy = nodal ? volumetric_pressures(body, y, team, tet_pressure_) : 0.0;
   // Scatter of tet t's energy, forces and 12x12 block.
   auto add_tet = [&](std::int64_t t, double& energy, std::int64_t& first_inverted) {
     const std::int32_t* v = tets + 4 * t;
@@ -400,8 +523,12 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
     double f[12];
     double block[144];
     double tet_energy;
-    if (!kernel::tet_tangent<kMooneyRivlin>(tet_params(body, t), yv[0], yv[1], yv[2], yv[3], f, block,
-                                            tet_energy)) {
+    kernel::TetParams params = tet_params(body, t);
+    if (nodal) {
+      params.kappa_pa = 0.0;
+      params.pressure_pa = tet_pressure_[t];
+    }
+    if (!kernel::tet_tangent<kMooneyRivlin>(params, yv[0], yv[1], yv[2], yv[3], f, block, tet_energy)) {
       first_inverted = std::min(first_inverted, t);
       return;
     }
@@ -422,8 +549,7 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
     }
   };
 
-  const int team = team_size(threads_, num_tets, kMinTangentTetsPerThread);
-  double energy = 0.0;
+  double energy = volumetric_energy;
   std::int64_t first_inverted = kNoTet;
   if (team == 1) {
     for (std::int64_t t = 0; t < num_tets; ++t) add_tet(t, energy, first_inverted);
@@ -450,10 +576,106 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
     }
     for (const double e : group_energy_) energy += e;
   }
+  if (nodal && first_inverted == kNoTet) update_volumetric_operator(y);
   ElasticEvaluation result;
   result.energy_j = energy;
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;
+}
+
+void TangentAssembler::update_volumetric_operator(const double* y) {
+  const ElasticBody& body = *body_;
+  const std::int32_t* tets = body.tets.data();
+  std::fill(g_rows_.begin(), g_rows_.end(), 0.0);
+  for (std::size_t a = 0; a < body.num_vertices; ++a) {
+    // g_a = sum_{t at a} (1/4) dv_t/dy; with D the deformed edge matrix
+    // (columns y_k - y_4), dv_t/dy_i^k = cof(D)_ik / 6 (k = 1..3) and
+    // dv_t/dy^4 = -sum_k dv_t/dy^k.
+    double* row = g_rows_.data() + 3 * patch_offsets_[a];
+    for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k) {
+      const std::int32_t* v = tets + 4 * static_cast<std::int64_t>(body.vertex_tets[k]);
+      const double* y3 = y + 3 * static_cast<std::int64_t>(v[3]);
+      double d[9];
+      for (int c = 0; c < 3; ++c) {
+        const double* yc = y + 3 * static_cast<std::int64_t>(v[c]);
+        for (int i = 0; i < 3; ++i) d[3 * i + c] = yc[i] - y3[i];
+      }
+      const double cof[9] = {d[4] * d[8] - d[5] * d[7], d[5] * d[6] - d[3] * d[8], d[3] * d[7] - d[4] * d[6],
+                             d[2] * d[7] - d[1] * d[8], d[0] * d[8] - d[2] * d[6], d[1] * d[6] - d[0] * d[7],
+                             d[1] * d[5] - d[2] * d[4], d[2] * d[3] - d[0] * d[5], d[0] * d[4] - d[1] * d[3]};
+      const std::int32_t* local = patch_local_.data() + 4 * k;
+      constexpr double kScale = 1.0 / 24.0;  // 1/4 (vertex share) x 1/6 (tet volume)
+      for (int i = 0; i < 3; ++i) {
+        const double h0 = kScale * cof[3 * i], h1 = kScale * cof[3 * i + 1], h2 = kScale * cof[3 * i + 2];
+        row[3 * local[0] + i] += h0;
+        row[3 * local[1] + i] += h1;
+        row[3 * local[2] + i] += h2;
+        row[3 * local[3] + i] -= h0 + h1 + h2;
+      }
+    }
+    // C_a = (kappa V)_a / V_a^2: d^2/dv_a^2 of (kappa V)_a / 2 (v_a / V_a - 1)^2
+    const double volume = body.vertex_volume_m3[a];
+    vertex_coefficient_[a] = volume > 0.0 ? body.vertex_bulk_volume_j[a] / (volume * volume) : 0.0;
+  }
+}
+
+void TangentAssembler::add_volumetric_product(const double* x, double* out) const {
+  if (!has_volumetric_operator()) return;
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body_->num_vertices);
+  const std::int64_t* offsets = patch_offsets_.data();
+  const std::int32_t* patches = patches_.data();
+  const double* g = g_rows_.data();
+  double* z = vertex_scratch_.data();
+  // G^T (C (G x)): two row-wise gathers; the rows of G^T are the entries
+  // g_a[b] read through mirror_entry_ (any thread count, same numbers).
+  const int team = team_size(threads_, 5 * num_vertices, kMinForceTetsPerThread);
+#pragma omp parallel num_threads(team)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t a = 0; a < num_vertices; ++a) {
+      double sum = 0.0;
+      for (std::int64_t k = offsets[a]; k < offsets[a + 1]; ++k) {
+        const double* xw = x + 3 * static_cast<std::int64_t>(patches[k]);
+        sum += g[3 * k] * xw[0] + g[3 * k + 1] * xw[1] + g[3 * k + 2] * xw[2];
+      }
+      z[a] = vertex_coefficient_[a] * sum;
+    }
+#pragma omp for schedule(static)
+    for (std::int64_t b = 0; b < num_vertices; ++b) {
+      double o0 = 0.0, o1 = 0.0, o2 = 0.0;
+      for (std::int64_t k = offsets[b]; k < offsets[b + 1]; ++k) {
+        const double za = z[patches[k]];
+        const double* gab = g + 3 * mirror_entry_[k];  // g_a[b], a = patches[k]
+        o0 += za * gab[0];
+        o1 += za * gab[1];
+        o2 += za * gab[2];
+      }
+      out[3 * b] += o0;
+      out[3 * b + 1] += o1;
+      out[3 * b + 2] += o2;
+    }
+  }
+}
+
+void TangentAssembler::add_volumetric_diagonal_blocks(double* blocks) const {
+  if (!has_volumetric_operator()) return;
+  // block_b = sum_{a in patch of b} C_a g_a[b] g_a[b]^T
+  for (std::size_t b = 0; b < body_->num_vertices; ++b) {
+    double* block = blocks + 9 * b;
+    for (std::int64_t k = patch_offsets_[b]; k < patch_offsets_[b + 1]; ++k) {
+      const double c = vertex_coefficient_[patches_[k]];
+      const double* gab = g_rows_.data() + 3 * mirror_entry_[k];
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) block[3 * i + j] += c * gab[i] * gab[j];
+      }
+    }
+  }
+}
+
+void TangentAssembler::multiply(const double* x, double* out) const {
+  const Eigen::Index n = stiffness_.cols();
+  Eigen::Map<Eigen::VectorXd>(out, n) = stiffness_ * Eigen::Map<const Eigen::VectorXd>(x, n);
+  add_volumetric_product(x, out);
 }
 
 ElasticEvaluation TangentAssembler::assemble(const double* positions_m, double* forces_n) {

@@ -15,6 +15,22 @@
 
 namespace cellflow::elastic {
 
+// How the volumetric term kappa/2 (J - 1)^2 of paper eq. (5) is evaluated.
+enum class VolumetricTerm {
+  // Per tetrahedron with its own J, as in the paper.
+  kPerTet,
+  // Per vertex with J averaged over the tetrahedra around it (average nodal
+  // pressure, Bonet & Burton 1998):
+  //   sum_a (kappa V)_a / 2 (Jbar_a - 1)^2,  V_a = sum_{t at a} V0_t / 4,
+  //   (kappa V)_a = sum_{t at a} kappa_t V0_t / 4,  Jbar_a = sum_{t at a} V0_t J_t / (4 V_a).
+  // A linear tetrahedron with its own J locks as nu -> 1/2: a mesh has about
+  // five tets per vertex, each a volume constraint, against three degrees of
+  // freedom per vertex. One constraint per vertex leaves the shape free.
+  // Equal to kPerTet for any homogeneous deformation; the isochoric terms
+  // (mu1, mu2) stay per tet.
+  kNodalAverage,
+};
+
 // Precomputed reference data, one entry per tetrahedron (structure of arrays).
 struct ElasticBody {
   std::vector<std::int32_t> tets;                // 4 per tet, copied from the mesh
@@ -23,13 +39,20 @@ struct ElasticBody {
   std::vector<double> mu1_pa, mu2_pa, kappa_pa;  // per tet, from its region's material
   bool neo_hookean = true;                       // every mu2 == 0: the K-term work is skipped
   std::size_t num_vertices = 0;
+  VolumetricTerm volumetric = VolumetricTerm::kPerTet;
+  // kNodalAverage only: V_a and (kappa V)_a per vertex, and the tetrahedra
+  // around each vertex (tets vertex_tets[vertex_tet_offsets[a] .. [a + 1]]).
+  std::vector<double> vertex_volume_m3, vertex_bulk_volume_j;
+  std::vector<std::int64_t> vertex_tet_offsets;
+  std::vector<std::int32_t> vertex_tets;
 
   std::size_t num_tets() const { return ref_volume_m3.size(); }
 };
 
 // Fails (kFailedPrecondition) on a tetrahedron with non-positive reference
 // volume, naming its index. `materials` is indexed by mesh::Region.
-StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<const Material> materials);
+StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<const Material> materials,
+                                        VolumetricTerm volumetric = VolumetricTerm::kPerTet);
 
 struct ElasticEvaluation {
   double energy_j = 0.0;
@@ -69,6 +92,14 @@ TetColouring colour_tets(std::span<const std::int32_t> tets, std::size_t num_ver
 
 // Tangent stiffness K = d^2 E / dy dy (3 nv x 3 nv, symmetric) at y. The
 // pattern is fixed by the connectivity; TangentAssembler reuses it.
+//
+// With VolumetricTerm::kNodalAverage K has a second part,
+//   K = stiffness() + G^T C G,  rows g_a = dv_a/dy of G, C = diag (kappa V)_a / V_a^2,
+// the Gauss-Newton part of the vertex volumetric energies (their pressure part
+// p dcof/dF is in the tet blocks of stiffness()). Each g_a couples all the
+// vertices around a; assembled, it would triple the nonzeros of K. It is
+// applied instead (add_volumetric_product, about the cost of the sparse
+// product) and its diagonal 3x3 blocks are available for preconditioners.
 class TangentAssembler {
  public:
   // `body` must outlive the assembler. The matrix stores both triangles.
@@ -79,12 +110,22 @@ class TangentAssembler {
   ElasticEvaluation assemble(const double* positions_m, double* forces_n);
   const Eigen::SparseMatrix<double>& stiffness() const { return stiffness_; }
   Eigen::SparseMatrix<double>& stiffness() { return stiffness_; }
+  // True for kNodalAverage: K has the applied part G^T C G.
+  bool has_volumetric_operator() const { return !vertex_coefficient_.empty(); }
+  // out += G^T C G x at the last assembled state (no-op without the operator).
+  void add_volumetric_product(const double* x, double* out) const;
+  // blocks[9 v + 3 i + j] += (G^T C G)_(3v+i),(3v+j): its diagonal 3x3 blocks.
+  void add_volumetric_diagonal_blocks(double* blocks) const;
+  // out = K x with both parts (tests and small problems).
+  void multiply(const double* x, double* out) const;
   // OpenMP threads for assemble(); <= 0 (the default) uses the OpenMP default.
   void set_threads(int threads) { threads_ = threads; }
 
  private:
   template <bool kMooneyRivlin>
   ElasticEvaluation assemble_impl(const double* positions_m, double* forces_n);
+  // kNodalAverage: the rows g_a of G and C at positions_m.
+  void update_volumetric_operator(const double* positions_m);
 
   const ElasticBody* body_;
   Eigen::SparseMatrix<double> stiffness_;
@@ -92,6 +133,18 @@ class TangentAssembler {
   // the entry (row 3 v_a, column 3 v_b + j) for local vertices a, b of tet t;
   // rows 3 v_a + 1 and + 2 follow it (a column holds a vertex's rows together).
   std::vector<std::int64_t> slot_;
+  // kNodalAverage: G by rows, row a over the patch of a (a and its
+  // neighbours, patches_[patch_offsets_[a] ..]), 3 values per patch vertex at
+  // the same offsets (g_rows_[3 k + i]); the patch positions of the vertices
+  // of the tets around a (4 per entry of body.vertex_tets); for every row
+  // entry k of vertex w = patches_[k], the entry of the row of w that holds
+  // a (the patch relation is symmetric), so G^T rows are G rows read across.
+  std::vector<std::int64_t> patch_offsets_;
+  std::vector<std::int32_t> patches_, patch_local_;
+  std::vector<std::int64_t> mirror_entry_;
+  std::vector<double> g_rows_, vertex_coefficient_;
+  mutable std::vector<double> vertex_scratch_;
+  std::vector<double> tet_pressure_;  // kNodalAverage scratch: mean nodal pressure per tet
   TetColouring colouring_;            // race-free parallel scatter, groups of consecutive tets
   std::vector<double> group_energy_;  // per colouring group, summed in order
   int threads_ = 0;

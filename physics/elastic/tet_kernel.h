@@ -37,6 +37,10 @@ struct TetParams {
   const double* b_matrix;  // 9, B = J^-1 of the reference tetrahedron
   double ref_volume_m3;
   double mu1_pa, mu2_pa, kappa_pa;
+  // Pressure p added as p cof(F) to the stress (and p dcof/dF to its
+  // derivative). The nodal-averaged volumetric term sets kappa_pa = 0 and
+  // passes the mean of the tet's nodal pressures here; otherwise 0.
+  double pressure_pa = 0.0;
 };
 
 // Everything the forces and the tangent need at one deformation gradient.
@@ -86,9 +90,12 @@ inline double deformation_gradient(const double* b, const double* y0, const doub
 }
 
 // Stage 3: invariants, energy density and nominal stress from s.f, s.cof,
-// s.det_f (> 0) and J^-1/3 (stage 2: inverse_cube_root).
+// s.det_f (> 0) and J^-1/3 (stage 2: inverse_cube_root). `pressure` adds
+// pressure cof(F) to the stress and nothing to the energy density (the
+// nodal-averaged volumetric energy is summed per vertex, elastic_body.cc).
 template <bool kMooneyRivlin>
-inline void stress_from_gradient(double mu1, double mu2, double kappa, double j_m13, TetStress& s) {
+inline void stress_from_gradient(double mu1, double mu2, double kappa, double j_m13, TetStress& s,
+                                 double pressure = 0.0) {
   const double* f = s.f;
   const double* cof = s.cof;
   const double det_f = s.det_f;
@@ -110,7 +117,7 @@ inline void stress_from_gradient(double mu1, double mu2, double kappa, double j_
   // c_F = mu1 J^-2/3 + mu2 T_C J^-4/3, c_FC = -mu2 J^-4/3,
   // c_cof = -mu1/3 T_C J^-5/3 - 2/3 mu2 K' J^-7/3 + kappa (J - 1), K' = (T_C^2 - T_C2) / 2
   double coef_f = mu1 * j_m23;
-  double coef_cof = -(1.0 / 3.0) * mu1 * inv_i * inv_det + kappa * jm1;
+  double coef_cof = -(1.0 / 3.0) * mu1 * inv_i * inv_det + kappa * jm1 + pressure;
   double* stress = s.stress;
   if constexpr (kMooneyRivlin) {
     const double j_m43 = j_m23 * j_m23;
@@ -157,7 +164,8 @@ inline bool tet_stress(const TetParams& p, const double* y0, const double* y1, c
                        const double* y3, TetStress& s) {
   s.det_f = deformation_gradient(p.b_matrix, y0, y1, y2, y3, s.f, s.cof);
   if (s.det_f <= 0.0) return false;
-  stress_from_gradient<kMooneyRivlin>(p.mu1_pa, p.mu2_pa, p.kappa_pa, inverse_cube_root(s.det_f), s);
+  stress_from_gradient<kMooneyRivlin>(p.mu1_pa, p.mu2_pa, p.kappa_pa, inverse_cube_root(s.det_f), s,
+                                      p.pressure_pa);
   return true;
 }
 
@@ -199,7 +207,7 @@ inline void stress_derivative(const TetParams& p, const TetStress& s, double* d2
   const double j_m23 = s.j_m23;
   const double jm1 = s.det_f - 1.0;
   double coef_f = mu1 * j_m23;
-  double coef_cof = -(1.0 / 3.0) * mu1 * s.trace_c * j_m23 * inv_det + p.kappa_pa * jm1;
+  double coef_cof = -(1.0 / 3.0) * mu1 * s.trace_c * j_m23 * inv_det + p.kappa_pa * jm1 + p.pressure_pa;
   double alpha = -(2.0 / 3.0) * mu1 * j_m23 * inv_det;
   double beta = (5.0 / 9.0) * mu1 * s.trace_c * j_m23 * inv_det * inv_det + p.kappa_pa;
   for (int r = 0; r < 9; ++r) {

@@ -106,7 +106,7 @@ StatusOr<Setup> prepare(const CellParams& cell, const QuasiStaticOptions& numeri
   // Nucleus tets of a file without nucleus parameters take the cytoplasm material.
   const std::array<elastic::Material, 2> materials{cell.material,
                                                    cell.nucleus ? cell.nucleus->material : cell.material};
-  StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(m, materials);
+  StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(m, materials, numerics.volumetric);
   if (!body.ok()) {
     return Status(body.status().code(), std::string(prefix) + "cell: " + body.status().message());
   }

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "physics/core/status.h"
+#include "physics/elastic/elastic_body.h"
 #include "physics/mesh/tet_mesh.h"
 #include "physics/scenes/cell_params.h"
 
@@ -45,6 +46,10 @@ struct QuasiStaticOptions {
   std::optional<double> contact_stiffness_n_per_m;
   std::optional<double> contact_range_m;
   int threads = 0;  // OpenMP threads of forces, tangent and CG; 0 = OpenMP default; in [0, 1024]
+  // The volumetric term kappa/2 (J - 1)^2 of paper eq. (5): averaged over the
+  // tets around each vertex (default; linear tets with their own J lock at
+  // nu = 0.48 and converge slowly, see elastic_body.h) or per tet as in the paper.
+  elastic::VolumetricTerm volumetric = elastic::VolumetricTerm::kNodalAverage;
 };
 
 struct CompressionParams {

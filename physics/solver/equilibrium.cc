@@ -215,6 +215,36 @@ void EquilibriumSolver::assemble_tangent(const contact::Obstacles& obstacles, co
   for (std::size_t i = 0; i < diagonal_slot_.size(); ++i) {
     diagonal_[static_cast<Eigen::Index>(i)] = values[diagonal_slot_[i]];
   }
+  if (tangent_.has_volumetric_operator()) {
+    volumetric_blocks_.assign(9 * body_->num_vertices, 0.0);
+    tangent_.add_volumetric_diagonal_blocks(volumetric_blocks_.data());
+    for (std::size_t v = 0; v < body_->num_vertices; ++v) {
+      for (int i = 0; i < 3; ++i)
+        diagonal_[static_cast<Eigen::Index>(3 * v + i)] += volumetric_blocks_[9 * v + 4 * i];
+    }
+  }
+}
+
+double EquilibriumSolver::contact_step_limit(const contact::Obstacles& obstacles, const double* y,
+                                             const Eigen::VectorXd& dx) const {
+  const std::size_t count = contact_vertices_.size();
+  contact_gaps_.resize(count);
+  contact_normals_.resize(3 * count);
+  contact::nearest_obstacle(obstacles, contact_vertices_, y, contact_gaps_.data(), contact_normals_.data());
+  const double range = obstacles.penalty.range_m;
+  double limit = 1.0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const double gap = contact_gaps_[k];
+    // Inside an obstacle the law is linear (exact in the quadratic model);
+    // no obstacle at all: infinite gap.
+    if (!(gap > 0.0) || !std::isfinite(gap)) continue;
+    const double* n = contact_normals_.data() + 3 * k;
+    const double* d = dx.data() + 3 * static_cast<std::int64_t>(contact_vertices_[k]);
+    const double approach = -(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]);  // gap decrease per unit step
+    const double allowed = gap - (std::min(gap, range) - 0.5 * range);
+    if (approach * limit > allowed) limit = allowed / approach;
+  }
+  return limit;
 }
 
 void EquilibriumSolver::matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, double shift) const {
@@ -265,13 +295,16 @@ void EquilibriumSolver::matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, d
   const int team = n > kMinParallelDofs ? team_size(options_.threads) : 1;
   if (team == 1) {
     vertices(0, nv);
-    return;
-  }
+  } else {
 #pragma omp parallel num_threads(team)
-  {
-    const std::int64_t rank = omp_get_thread_num(), size = omp_get_num_threads();
-    vertices(nv * rank / size, nv * (rank + 1) / size);
+    {
+      const std::int64_t rank = omp_get_thread_num(), size = omp_get_num_threads();
+      vertices(nv * rank / size, nv * (rank + 1) / size);
+    }
   }
+  // the applied part of K (nodal-averaged volumetric term); its diagonal is
+  // in diag, so the shift above already covers it
+  tangent_.add_volumetric_product(xs, os);
 }
 
 int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance,
@@ -329,10 +362,14 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
 void EquilibriumSolver::build_preconditioner(double shift) {
   Preconditioning& pc = *preconditioning_;
   if (options_.preconditioner == Preconditioner::kIncompleteCholesky) {
-    if (shift > 0.0) {
-      // factor K + shift diag K: the same matrix CG sees
+    if (shift > 0.0 || !volumetric_blocks_.empty()) {
+      // factor K + shift diag K: the matrix CG sees, except that of the
+      // applied volumetric part only the diagonal blocks are in the pattern
       pc.shifted = tangent_.stiffness();
       double* values = pc.shifted.valuePtr();
+      for (std::size_t v = 0; v < volumetric_blocks_.size() / 9; ++v) {
+        for (int e = 0; e < 9; ++e) values[vertex_block_slot_[9 * v + e]] += volumetric_blocks_[9 * v + e];
+      }
       for (std::size_t i = 0; i < diagonal_slot_.size(); ++i) {
         values[diagonal_slot_[i]] += shift * diagonal_[static_cast<Eigen::Index>(i)];
       }
@@ -350,6 +387,9 @@ void EquilibriumSolver::build_preconditioner(double shift) {
     Eigen::Matrix3d block;
     for (int a = 0; a < 3; ++a) {
       for (int b = 0; b < 3; ++b) block(a, b) = values[vertex_block_slot_[9 * v + 3 * a + b]];
+    }
+    if (!volumetric_blocks_.empty()) {
+      block += Eigen::Map<const Eigen::Matrix3d>(volumetric_blocks_.data() + 9 * v);
     }
     block.diagonal() *= (1.0 + shift);
     Eigen::Matrix3d inverse = block.inverse();
@@ -456,8 +496,14 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
         pc.factor_valid = false;
         continue;
       }
-      const double predicted_decrease = -0.5 * slope;
-      double step = 1.0;
+      // A vertex entering an obstacle's penalty range stiffens far beyond what
+      // the tangent at its present gap predicts (zero outside the range), and
+      // a full step then overshoots by orders of magnitude in energy. The
+      // step is capped so that no vertex goes more than half a range deeper.
+      const double step_limit = contact_step_limit(obstacles, y.data(), dx);
+      double step = step_limit;
+      // the quadratic model's decrease over a (1 - a/2) (-slope) at step a
+      const double predicted_decrease = -slope * step * (1.0 - 0.5 * step);
       double ratio = 0.0;
       for (int ls = 0; ls < options_.max_line_search_steps; ++ls) {
         trial = y + step * dx;
@@ -497,7 +543,7 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
       // lambda *= growth, growth *= 2. Soft modes whose energy is not
       // quadratic (a flattened cell's rim at large compression) make full
       // Newton steps overshoot; the damping settles just above their stiffness.
-      if (accepted && step == 1.0 && ratio > 0.0) {
+      if (accepted && step == step_limit && ratio > 0.0) {
         const double t = 2.0 * ratio - 1.0;
         damping_ *= std::max(1.0 / 3.0, 1.0 - t * t * t);
         if (damping_ < kMinDamping) damping_ = 0.0;

@@ -139,6 +139,11 @@ class EquilibriumSolver {
                        double& energy, EquilibriumReport& report) const;
   void build_rigid_modes(const double* y);
   void project(Eigen::VectorXd& v) const;
+  // Largest step a <= 1 along dx after which no contact vertex outside an
+  // obstacle (gap g > 0) is deeper in the penalty range than half a range
+  // beyond where it is now: g + a n.dx >= min(g, r) - r / 2.
+  double contact_step_limit(const contact::Obstacles& obstacles, const double* y,
+                            const Eigen::VectorXd& dx) const;
   double held_component(const Eigen::VectorXd& v) const;
   void assemble_tangent(const contact::Obstacles& obstacles, const double* y);
   void matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, double shift) const;
@@ -156,6 +161,10 @@ class EquilibriumSolver {
   std::vector<std::int64_t> diagonal_slot_;          // 3 per vertex, into K's values
   std::vector<std::int64_t> vertex_block_slot_;      // 9 per vertex: its diagonal 3x3 block, row-major
   std::vector<double> contact_blocks_;
+  mutable std::vector<double> contact_gaps_, contact_normals_;  // contact_step_limit scratch
+  // Diagonal 3x3 blocks of the applied volumetric part of K (nodal-averaged
+  // volumetric term, elastic::TangentAssembler), 9 per vertex; empty without it.
+  std::vector<double> volumetric_blocks_;
   std::vector<std::int32_t> block_neighbours_;         // neighbour vertex of each 3x3 block of a block column
   std::vector<std::int64_t> block_neighbour_offsets_;  // per vertex; empty if K lacks the block layout
   Eigen::VectorXd diagonal_;                           // diag K (Levenberg shift)

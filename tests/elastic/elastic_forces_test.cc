@@ -23,7 +23,7 @@ TEST_P(ElasticForcesAreEnergyGradient, BoxAndRandomTets) {
   const mesh::TetMesh box = make_box_mesh(3, 3, 2, kBoxSize, kBoxSize, 0.8 * kBoxSize);
   const mesh::TetMesh tets = random_tets(6, rng);
   for (const mesh::TetMesh* mesh : {&box, &tets}) {
-    const ElasticBody body = make_body(*mesh, material(c.w, c.nu));
+    const ElasticBody body = make_body(*mesh, material(c.w, c.nu), c.volumetric);
     EXPECT_EQ(body.neo_hookean, c.w == 1.0);
     for (int sample = 0; sample < 2; ++sample) {
       const std::vector<double> y = random_deformation(*mesh, rng, 0.03 * first_edge_m(*mesh));
@@ -50,7 +50,7 @@ class ElasticRigidMotion : public ::testing::TestWithParam<MaterialCase> {};
 TEST_P(ElasticRigidMotion, NoEnergyNoForce) {
   const MaterialCase c = GetParam();
   const mesh::TetMesh mesh = make_box_mesh(3, 3, 3, kBoxSize, kBoxSize, kBoxSize);
-  const ElasticBody body = make_body(mesh, material(c.w, c.nu));
+  const ElasticBody body = make_body(mesh, material(c.w, c.nu), c.volumetric);
   const Moduli moduli = moduli_from(material(c.w, c.nu));
   const double mu = moduli.mu1_pa + moduli.mu2_pa;
   const double energy_scale = mu * kBoxSize * kBoxSize * kBoxSize;
@@ -97,7 +97,7 @@ TEST_P(ElasticRigidMotion, NoNetForceOrTorque) {
   const MaterialCase c = GetParam();
   std::mt19937 rng(99);
   const mesh::TetMesh mesh = make_box_mesh(4, 3, 3, kBoxSize, kBoxSize, kBoxSize);
-  const ElasticBody body = make_body(mesh, material(c.w, c.nu));
+  const ElasticBody body = make_body(mesh, material(c.w, c.nu), c.volumetric);
   for (int sample = 0; sample < 3; ++sample) {
     const std::vector<double> y = random_deformation(mesh, rng, 0.05 * kBoxSize / 4);
     const std::vector<double> f = forces_at(body, y);
@@ -283,6 +283,33 @@ TEST(ElasticMakeBody, RegionsTakeTheirMaterial) {
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.status().code(), StatusCode::kInvalidArgument);
   EXPECT_NE(missing.status().message().find("region 1"), std::string::npos) << missing.status().message();
+}
+
+// The nodal-averaged volumetric term equals the per-tet one wherever J is
+// uniform (a homogeneous deformation: Jbar_a = J_t = det F), and differs
+// otherwise; its forces run the same on one and two threads.
+TEST(ElasticNodalAverage, EqualsPerTetForHomogeneousDeformation) {
+  const mesh::TetMesh mesh = make_box_mesh(3, 3, 2, kBoxSize, kBoxSize, 0.8 * kBoxSize);
+  const ElasticBody per_tet = make_body(mesh, material(0.5, 0.48));
+  const ElasticBody nodal = make_body(mesh, material(0.5, 0.48), VolumetricTerm::kNodalAverage);
+  // F = [[1.1, 0.2, 0], [0, 0.93, 0.05], [0.03, 0, 0.97]], y = F x
+  const double f[9] = {1.1, 0.2, 0.0, 0.0, 0.93, 0.05, 0.03, 0.0, 0.97};
+  std::vector<double> y(mesh.positions_m.size());
+  for (std::size_t v = 0; v < mesh.num_vertices(); ++v) {
+    const double* x = mesh.positions_m.data() + 3 * v;
+    for (int i = 0; i < 3; ++i) y[3 * v + i] = f[3 * i] * x[0] + f[3 * i + 1] * x[1] + f[3 * i + 2] * x[2];
+  }
+  const double e_tet = elastic_energy(per_tet, y.data(), 1).energy_j;
+  EXPECT_NEAR(elastic_energy(nodal, y.data(), 1).energy_j, e_tet, 1e-12 * e_tet);
+  const std::vector<double> f_tet = forces_at(per_tet, y);
+  EXPECT_LT(relative_error(forces_at(nodal, y), f_tet), 1e-10);
+  // a non-homogeneous deformation: different energies, same on two threads
+  std::mt19937 rng(5);
+  const std::vector<double> z = random_deformation(mesh, rng, 0.05 * first_edge_m(mesh));
+  const double e_nodal = elastic_energy(nodal, z.data(), 1).energy_j;
+  EXPECT_LT(e_nodal, elastic_energy(per_tet, z.data(), 1).energy_j);  // fewer volume constraints
+  EXPECT_NEAR(elastic_energy(nodal, z.data(), 2).energy_j, e_nodal, 1e-13 * e_nodal);
+  EXPECT_LT(relative_error(forces_at(nodal, z, 2), forces_at(nodal, z, 1)), 1e-13);
 }
 
 TEST(ElasticMakeBody, RefusesNonPositiveReferenceVolume) {

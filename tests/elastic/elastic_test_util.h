@@ -25,9 +25,10 @@ inline Material material(double w, double nu) {
   return {kYoungsModulus, nu, w};
 }
 
-inline ElasticBody make_body(const mesh::TetMesh& mesh, const Material& m) {
+inline ElasticBody make_body(const mesh::TetMesh& mesh, const Material& m,
+                             VolumetricTerm volumetric = VolumetricTerm::kPerTet) {
   const Material materials[] = {m};
-  StatusOr<ElasticBody> body = make_elastic_body(mesh, materials);
+  StatusOr<ElasticBody> body = make_elastic_body(mesh, materials, volumetric);
   EXPECT_TRUE(body.ok()) << body.status().to_string();
   return std::move(body).value();
 }
@@ -128,18 +129,30 @@ inline double first_edge_m(const mesh::TetMesh& mesh) {
                    (x[3 * a + 2] - x[3 * b + 2]) * (x[3 * a + 2] - x[3 * b + 2]));
 }
 
-// The material cases of the brief: w = 1, 0.5, 0.25 and nu = 0.3, 0.48.
+// The material cases of the brief: w = 1, 0.5, 0.25 and nu = 0.3, 0.48, with
+// the paper's per-tet volumetric term, and the nearly incompressible ones
+// (plus one at nu = 0.3) again with the nodal-averaged term.
 struct MaterialCase {
   double w;
   double nu;
+  VolumetricTerm volumetric = VolumetricTerm::kPerTet;
 };
-inline const MaterialCase kMaterialCases[] = {{1.0, 0.3},  {0.5, 0.3},  {0.25, 0.3},
-                                              {1.0, 0.48}, {0.5, 0.48}, {0.25, 0.48}};
+inline const MaterialCase kMaterialCases[] = {{1.0, 0.3},
+                                              {0.5, 0.3},
+                                              {0.25, 0.3},
+                                              {1.0, 0.48},
+                                              {0.5, 0.48},
+                                              {0.25, 0.48},
+                                              {0.5, 0.3, VolumetricTerm::kNodalAverage},
+                                              {1.0, 0.48, VolumetricTerm::kNodalAverage},
+                                              {0.5, 0.48, VolumetricTerm::kNodalAverage},
+                                              {0.25, 0.48, VolumetricTerm::kNodalAverage}};
 
 inline std::string case_name(const ::testing::TestParamInfo<MaterialCase>& info) {
   char name[32];
-  std::snprintf(name, sizeof(name), "w%03ld_nu%03ld", std::lround(info.param.w * 100),
-                std::lround(info.param.nu * 100));
+  std::snprintf(name, sizeof(name), "w%03ld_nu%03ld%s", std::lround(info.param.w * 100),
+                std::lround(info.param.nu * 100),
+                info.param.volumetric == VolumetricTerm::kNodalAverage ? "_nodal" : "");
   return name;
 }
 

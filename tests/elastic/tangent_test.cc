@@ -29,6 +29,21 @@ Eigen::MatrixXd finite_difference_tangent(const ElasticBody& body, std::vector<d
   return k;
 }
 
+// K with both parts (stiffness() and, for the nodal-averaged volumetric
+// term, the applied G^T C G), column by column through multiply().
+Eigen::MatrixXd dense_tangent(const TangentAssembler& assembler) {
+  const Eigen::Index n = assembler.stiffness().cols();
+  Eigen::MatrixXd k(n, n);
+  Eigen::VectorXd unit = Eigen::VectorXd::Zero(n), column(n);
+  for (Eigen::Index c = 0; c < n; ++c) {
+    unit[c] = 1.0;
+    assembler.multiply(unit.data(), column.data());
+    k.col(c) = column;
+    unit[c] = 0.0;
+  }
+  return k;
+}
+
 class ElasticTangentIsForceDerivative : public ::testing::TestWithParam<MaterialCase> {};
 
 // Relative error max |K - K_fd| / max |K| below 1e-6 (step 1e-5 of an edge).
@@ -38,14 +53,29 @@ TEST_P(ElasticTangentIsForceDerivative, BoxAndRandomTets) {
   const mesh::TetMesh box = make_box_mesh(2, 2, 2, kBoxSize, kBoxSize, kBoxSize);
   const mesh::TetMesh tets = random_tets(4, rng);
   for (const mesh::TetMesh* mesh : {&box, &tets}) {
-    const ElasticBody body = make_body(*mesh, material(c.w, c.nu));
+    const ElasticBody body = make_body(*mesh, material(c.w, c.nu), c.volumetric);
     TangentAssembler assembler(body);
     for (int sample = 0; sample < 2; ++sample) {
       const std::vector<double> y = random_deformation(*mesh, rng, 0.03 * first_edge_m(*mesh));
       std::vector<double> f(y.size(), 0.0);
       const ElasticEvaluation eval = assembler.assemble(y.data(), f.data());
       ASSERT_EQ(eval.first_inverted_tet, -1);
-      const Eigen::MatrixXd k(assembler.stiffness());
+      EXPECT_EQ(assembler.has_volumetric_operator(), c.volumetric == VolumetricTerm::kNodalAverage);
+      const Eigen::MatrixXd k = dense_tangent(assembler);
+      // the diagonal blocks the preconditioners see are those of K
+      std::vector<double> blocks(9 * body.num_vertices, 0.0);
+      const Eigen::MatrixXd sparse_part(assembler.stiffness());
+      assembler.add_volumetric_diagonal_blocks(blocks.data());
+      for (std::size_t v = 0; v < body.num_vertices; ++v) {
+        for (int i = 0; i < 3; ++i) {
+          for (int j = 0; j < 3; ++j) {
+            const Eigen::Index r = static_cast<Eigen::Index>(3 * v + i),
+                               col = static_cast<Eigen::Index>(3 * v + j);
+            EXPECT_NEAR(sparse_part(r, col) + blocks[9 * v + 3 * i + j], k(r, col),
+                        1e-12 * k.cwiseAbs().maxCoeff());
+          }
+        }
+      }
       const Eigen::MatrixXd k_fd = finite_difference_tangent(body, y, 1e-5 * first_edge_m(*mesh));
       const double k_max = k.cwiseAbs().maxCoeff();
       EXPECT_LT((k - k_fd).cwiseAbs().maxCoeff() / k_max, 1e-6);

@@ -26,13 +26,14 @@ IndentationParams particle(int vertices, double max_indentation_radii, int load_
 }
 
 // F / F_Hertz(probe) on the default mesh at indentations 0.04 R ... 0.2 R.
-// Measured: 1.87, 1.51, 1.39, 1.34, 1.32. At 0.04 R the top contact radius
-// sqrt(R12 d_top) ~ 0.1 R is below the mean edge (0.14 R): one or two
+// Measured (nodal-averaged volumetric term): 1.33, 1.20, 1.16, 1.16, 1.16
+// (per-tet term: 1.87, 1.51, 1.39, 1.34, 1.32). At 0.04 R the top contact
+// radius sqrt(R12 d_top) ~ 0.1 R is below the mean edge (0.14 R): one or two
 // vertices carry the probe; from 0.12 R on the ratio settles at the same
-// excess as compression on this mesh (faceting and locking of linear tets at
-// nu = 0.48, see compression_test.cc). Asserted: the ratio falls
-// monotonically towards 1 and lies in [1.25, 1.45] once the contact spans a
-// vertex ring (indentation >= 0.12 R).
+// excess as compression on this mesh (faceting, see compression_test.cc).
+// Asserted: the ratio never rises by more than 1 % from one point to the
+// next up to 0.2 R, and lies in [1.10, 1.25] once the contact spans a vertex
+// ring (indentation >= 0.12 R).
 TEST(Indentation, ForceAgainstHertzAtSmallIndentation) {
   const QuasiStaticResult r = run_indentation(particle(3000, 0.2, 5));
   ASSERT_TRUE(r.status.ok()) << r.status.to_string();
@@ -42,11 +43,11 @@ TEST(Indentation, ForceAgainstHertzAtSmallIndentation) {
     const double ratio = p.force_n / p.hertz_force_n;
     std::printf("indentation %.3f R: F/F_Hertz %.4f\n", p.displacement_m / 40e-6, ratio);
     EXPECT_GT(ratio, 1.0);
-    EXPECT_LT(ratio, previous);
+    EXPECT_LT(ratio, 1.01 * previous);
     previous = ratio;
     if (p.displacement_m >= 0.12 * 40e-6 - 1e-12) {
-      EXPECT_GE(ratio, 1.25);
-      EXPECT_LE(ratio, 1.45);
+      EXPECT_GE(ratio, 1.10);
+      EXPECT_LE(ratio, 1.25);
     }
   }
 }

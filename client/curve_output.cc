@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 
+#include "client/svg_plot.h"
 #include "physics/io/h5md.h"
 
 namespace cellflow::client {
@@ -48,34 +49,6 @@ std::string number(double value, bool integer) {
     std::snprintf(buffer, sizeof buffer, "%.17g", value);
   }
   return buffer;
-}
-
-std::string fixed(double value, int digits) {
-  char buffer[40];
-  std::snprintf(buffer, sizeof buffer, "%.*f", digits, value);
-  return buffer;
-}
-
-// Digits after the decimal point that show tick step `step` exactly enough.
-int decimals_for(double step) {
-  return std::max(0, static_cast<int>(std::ceil(-std::log10(step) - 1e-9)));
-}
-
-std::string escape(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    if (c == '&')
-      out += "&amp;";
-    else if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '"')
-      out += "&quot;";
-    else
-      out += c;
-  }
-  return out;
 }
 
 }  // namespace
@@ -153,30 +126,12 @@ std::string curve_csv(const Curve& curve) {
   return out;
 }
 
-std::vector<double> nice_ticks(double lo, double hi, int target_count) {
-  if (!(hi > lo)) hi = lo + 1.0;
-  const double raw = (hi - lo) / std::max(target_count - 1, 1);
-  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
-  double step = magnitude;
-  for (double m : {1.0, 2.0, 5.0, 10.0}) {
-    step = m * magnitude;
-    if (step >= raw) break;
-  }
-  std::vector<double> ticks;
-  for (double t = std::floor(lo / step) * step; t <= hi + 0.5 * step; t += step) {
-    ticks.push_back(std::fabs(t) < 1e-12 * step ? 0.0 : t);
-    if (t >= hi - 1e-9 * step) break;
-  }
-  return ticks;
-}
-
 std::string curve_svg(const Curve& curve, const std::string& title) {
   const int ix = curve.column("deformation");
   const int iforce = curve.column("force_n");
   const int ihertz = curve.column("hertz_force_n");
-  // Plot frame in SVG pixels.
-  const double width = 720, height = 480, left = 90, right = 30, top = 50, bottom = 70;
-  const double plot_w = width - left - right, plot_h = height - top - bottom;
+  const PlotFrame frame;
+  const double left = frame.left, top = frame.top, plot_w = frame.plot_w(), plot_h = frame.plot_h();
 
   double x_max = 0.0, f_max = 0.0;
   for (const auto& row : curve.rows) {
@@ -201,53 +156,31 @@ std::string curve_svg(const Curve& curve, const std::string& title) {
   auto px = [&](double x) { return left + plot_w * x / x_hi; };
   auto py = [&](double f) { return top + plot_h * (1.0 - f / unit.scale / y_hi); };
 
-  std::string svg;
-  svg += "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
-  svg += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + fixed(width, 0) + "\" height=\"" +
-         fixed(height, 0) + "\" viewBox=\"0 0 " + fixed(width, 0) + " " + fixed(height, 0) +
-         "\" font-family=\"Helvetica, Arial, sans-serif\" font-size=\"13\">\n";
-  svg += "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  svg += "<text x=\"" + fixed(width / 2, 1) + "\" y=\"28\" text-anchor=\"middle\" font-size=\"16\">" +
-         escape(title) + "</text>\n";
-  // Grid and ticks.
-  const int xd = xt.size() > 1 ? decimals_for(xt[1] - xt[0]) : 1;
-  const int yd = yt.size() > 1 ? decimals_for(yt[1] - yt[0]) : 1;
-  for (double t : xt) {
-    const std::string x = fixed(px(t), 1);
-    svg += "<line x1=\"" + x + "\" y1=\"" + fixed(top, 1) + "\" x2=\"" + x + "\" y2=\"" +
-           fixed(top + plot_h, 1) + "\" stroke=\"#e0e0e0\"/>\n";
-    svg += "<line x1=\"" + x + "\" y1=\"" + fixed(top + plot_h, 1) + "\" x2=\"" + x + "\" y2=\"" +
-           fixed(top + plot_h + 6, 1) + "\" stroke=\"black\"/>\n";
-    svg += "<text x=\"" + x + "\" y=\"" + fixed(top + plot_h + 22, 1) + "\" text-anchor=\"middle\">" +
-           fixed(t, xd) + "</text>\n";
-  }
-  for (double t : yt) {
-    const std::string y = fixed(py(t * unit.scale), 1);
-    svg += "<line x1=\"" + fixed(left, 1) + "\" y1=\"" + y + "\" x2=\"" + fixed(left + plot_w, 1) +
-           "\" y2=\"" + y + "\" stroke=\"#e0e0e0\"/>\n";
-    svg += "<line x1=\"" + fixed(left - 6, 1) + "\" y1=\"" + y + "\" x2=\"" + fixed(left, 1) + "\" y2=\"" +
-           y + "\" stroke=\"black\"/>\n";
-    svg += "<text x=\"" + fixed(left - 10, 1) + "\" y=\"" + fixed(py(t * unit.scale) + 4, 1) +
-           "\" text-anchor=\"end\">" + fixed(t, yd) + "</text>\n";
-  }
-  // Axes and labels.
-  svg += "<rect x=\"" + fixed(left, 1) + "\" y=\"" + fixed(top, 1) + "\" width=\"" + fixed(plot_w, 1) +
-         "\" height=\"" + fixed(plot_h, 1) + "\" fill=\"none\" stroke=\"black\"/>\n";
-  svg += "<text x=\"" + fixed(left + plot_w / 2, 1) + "\" y=\"" + fixed(height - 20, 1) +
-         "\" text-anchor=\"middle\">deformation \u03b4 / 2R</text>\n";
-  svg += "<text transform=\"translate(24 " + fixed(top + plot_h / 2, 1) +
-         ") rotate(-90)\" text-anchor=\"middle\">force (" + std::string(unit.name) + ")</text>\n";
+  PlotSeries simulation;
+  simulation.color = "#1f77b4";
+  simulation.markers = true;
+  simulation.label = "simulation";
+  PlotSeries hertz;
+  hertz.color = "#d62728";
+  hertz.dash = "7,5";
+  hertz.label = "Hertz";
 
-  auto polyline = [&](int column, const char* style) {
+  std::string svg = svg_open(frame, title);
+  // The y ticks are in the prefixed unit, py takes newtons.
+  svg += svg_axes(
+      frame, xt, yt, px, [&](double t) { return py(t * unit.scale); }, "deformation \u03b4 / 2R",
+      "force (" + std::string(unit.name) + ")");
+
+  // Every point, even a single one, is drawn: Hertz under the simulation.
+  auto polyline = [&](int column, const PlotSeries& style) {
     std::string points;
     for (const auto& row : curve.rows)
       points += fixed(px(row[ix]), 2) + "," + fixed(py(row[column]), 2) + " ";
-    return "<polyline fill=\"none\" " + std::string(style) + " points=\"" + points + "\"/>\n";
+    return "<polyline fill=\"none\" " + svg_stroke(style) + " points=\"" + points + "\"/>\n";
   };
-  if (ix >= 0 && ihertz >= 0)
-    svg += polyline(ihertz, "stroke=\"#d62728\" stroke-width=\"2\" stroke-dasharray=\"7,5\"");
+  if (ix >= 0 && ihertz >= 0) svg += polyline(ihertz, hertz);
   if (ix >= 0 && iforce >= 0) {
-    svg += polyline(iforce, "stroke=\"#1f77b4\" stroke-width=\"2\"");
+    svg += polyline(iforce, simulation);
     for (const auto& row : curve.rows) {
       svg += "<circle cx=\"" + fixed(px(row[ix]), 2) + "\" cy=\"" + fixed(py(row[iforce]), 2) +
              "\" r=\"3\" fill=\"#1f77b4\"/>\n";
@@ -257,14 +190,7 @@ std::string curve_svg(const Curve& curve, const std::string& title) {
   const double lx = left + 16, ly = top + 16;
   svg += "<rect x=\"" + fixed(lx - 8, 1) + "\" y=\"" + fixed(ly - 12, 1) +
          "\" width=\"200\" height=\"48\" fill=\"white\" stroke=\"#999999\"/>\n";
-  svg += "<line x1=\"" + fixed(lx, 1) + "\" y1=\"" + fixed(ly, 1) + "\" x2=\"" + fixed(lx + 30, 1) +
-         "\" y2=\"" + fixed(ly, 1) + "\" stroke=\"#1f77b4\" stroke-width=\"2\"/>\n";
-  svg += "<circle cx=\"" + fixed(lx + 15, 1) + "\" cy=\"" + fixed(ly, 1) + "\" r=\"3\" fill=\"#1f77b4\"/>\n";
-  svg += "<text x=\"" + fixed(lx + 40, 1) + "\" y=\"" + fixed(ly + 4, 1) + "\">simulation</text>\n";
-  svg += "<line x1=\"" + fixed(lx, 1) + "\" y1=\"" + fixed(ly + 22, 1) + "\" x2=\"" + fixed(lx + 30, 1) +
-         "\" y2=\"" + fixed(ly + 22, 1) +
-         "\" stroke=\"#d62728\" stroke-width=\"2\" stroke-dasharray=\"7,5\"/>\n";
-  svg += "<text x=\"" + fixed(lx + 40, 1) + "\" y=\"" + fixed(ly + 26, 1) + "\">Hertz</text>\n";
+  svg += svg_legend_entries(lx, ly, {simulation, hertz});
   svg += "</svg>\n";
   return svg;
 }

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "client/svg_plot.h"  // nice_ticks
 #include "physics/core/status.h"
 
 namespace cellflow::client {
@@ -31,8 +32,5 @@ std::string curve_csv(const Curve& curve);
 // with ticks and labels, a legend and a title. Force in the SI prefix that
 // suits the data (pN, nN, uN, ...).
 std::string curve_svg(const Curve& curve, const std::string& title);
-
-// "Nice" tick positions (1, 2, 5 x 10^k steps) covering [lo, hi].
-std::vector<double> nice_ticks(double lo, double hi, int target_count = 6);
 
 }  // namespace cellflow::client

@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 
+#include "client/svg_plot.h"
 #include "physics/io/h5md.h"
 
 namespace cellflow::client {
@@ -34,51 +35,13 @@ constexpr Column kColumns[] = {
     {"volume_m3", "volume_m3", 0, false},
 };
 
-std::string fixed(double value, int digits) {
-  char buffer[40];
-  std::snprintf(buffer, sizeof buffer, "%.*f", digits, value);
-  return buffer;
-}
-
-int decimals_for(double step) {
-  return std::max(0, static_cast<int>(std::ceil(-std::log10(step) - 1e-9)));
-}
-
-std::string escape(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    if (c == '&')
-      out += "&amp;";
-    else if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '"')
-      out += "&quot;";
-    else
-      out += c;
-  }
-  return out;
-}
-
-// One data set of a plot: a polyline and/or markers, with a legend entry.
-struct Series {
-  std::vector<std::pair<double, double>> points;
-  std::string color;
-  std::string dash;          // stroke-dasharray, "" = solid
-  bool line = true;          // draw the polyline
-  bool markers = false;      // draw a circle per point
-  std::vector<bool> hollow;  // per point (markers only): an open circle
-  std::string label;
-};
-
 // A line plot with both axes from 0, nice ticks, a grid, labels and a legend.
 std::string plot_svg(const std::string& title, const std::string& x_label, const std::string& y_label,
-                     const std::vector<Series>& series, double x_hint, double y_hint) {
-  const double width = 720, height = 480, left = 90, right = 30, top = 50, bottom = 70;
-  const double plot_w = width - left - right, plot_h = height - top - bottom;
+                     const std::vector<PlotSeries>& series, double x_hint, double y_hint) {
+  const PlotFrame frame;
+  const double left = frame.left, top = frame.top, plot_w = frame.plot_w(), plot_h = frame.plot_h();
   double x_max = x_hint, y_max = y_hint;
-  for (const Series& s : series) {
+  for (const PlotSeries& s : series) {
     for (const auto& [x, y] : s.points) {
       if (std::isfinite(x)) x_max = std::max(x_max, x);
       if (std::isfinite(y)) y_max = std::max(y_max, y);
@@ -90,50 +53,14 @@ std::string plot_svg(const std::string& title, const std::string& x_label, const
   auto px = [&](double x) { return left + plot_w * std::clamp(x / x_hi, 0.0, 1.0); };
   auto py = [&](double y) { return top + plot_h * (1.0 - std::clamp(y / y_hi, 0.0, 1.0)); };
 
-  std::string svg;
-  svg += "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
-  svg += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + fixed(width, 0) + "\" height=\"" +
-         fixed(height, 0) + "\" viewBox=\"0 0 " + fixed(width, 0) + " " + fixed(height, 0) +
-         "\" font-family=\"Helvetica, Arial, sans-serif\" font-size=\"13\">\n";
-  svg += "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  svg += "<text x=\"" + fixed(width / 2, 1) + "\" y=\"28\" text-anchor=\"middle\" font-size=\"16\">" +
-         escape(title) + "</text>\n";
-  const int xd = xt.size() > 1 ? decimals_for(xt[1] - xt[0]) : 1;
-  const int yd = yt.size() > 1 ? decimals_for(yt[1] - yt[0]) : 1;
-  for (double t : xt) {
-    const std::string x = fixed(px(t), 1);
-    svg += "<line x1=\"" + x + "\" y1=\"" + fixed(top, 1) + "\" x2=\"" + x + "\" y2=\"" +
-           fixed(top + plot_h, 1) + "\" stroke=\"#e0e0e0\"/>\n";
-    svg += "<line x1=\"" + x + "\" y1=\"" + fixed(top + plot_h, 1) + "\" x2=\"" + x + "\" y2=\"" +
-           fixed(top + plot_h + 6, 1) + "\" stroke=\"black\"/>\n";
-    svg += "<text x=\"" + x + "\" y=\"" + fixed(top + plot_h + 22, 1) + "\" text-anchor=\"middle\">" +
-           fixed(t, xd) + "</text>\n";
-  }
-  for (double t : yt) {
-    const std::string y = fixed(py(t), 1);
-    svg += "<line x1=\"" + fixed(left, 1) + "\" y1=\"" + y + "\" x2=\"" + fixed(left + plot_w, 1) +
-           "\" y2=\"" + y + "\" stroke=\"#e0e0e0\"/>\n";
-    svg += "<line x1=\"" + fixed(left - 6, 1) + "\" y1=\"" + y + "\" x2=\"" + fixed(left, 1) + "\" y2=\"" +
-           y + "\" stroke=\"black\"/>\n";
-    svg += "<text x=\"" + fixed(left - 10, 1) + "\" y=\"" + fixed(py(t) + 4, 1) + "\" text-anchor=\"end\">" +
-           fixed(t, yd) + "</text>\n";
-  }
-  svg += "<rect x=\"" + fixed(left, 1) + "\" y=\"" + fixed(top, 1) + "\" width=\"" + fixed(plot_w, 1) +
-         "\" height=\"" + fixed(plot_h, 1) + "\" fill=\"none\" stroke=\"black\"/>\n";
-  svg += "<text x=\"" + fixed(left + plot_w / 2, 1) + "\" y=\"" + fixed(height - 20, 1) +
-         "\" text-anchor=\"middle\">" + escape(x_label) + "</text>\n";
-  svg += "<text transform=\"translate(24 " + fixed(top + plot_h / 2, 1) +
-         ") rotate(-90)\" text-anchor=\"middle\">" + escape(y_label) + "</text>\n";
+  std::string svg = svg_open(frame, title);
+  svg += svg_axes(frame, xt, yt, px, py, x_label, y_label);
 
-  auto stroke = [](const Series& s) {
-    return "stroke=\"" + s.color + "\" stroke-width=\"2\"" +
-           (s.dash.empty() ? std::string() : " stroke-dasharray=\"" + s.dash + "\"");
-  };
-  for (const Series& s : series) {
+  for (const PlotSeries& s : series) {
     if (s.line && s.points.size() > 1) {
       std::string points;
       for (const auto& [x, y] : s.points) points += fixed(px(x), 2) + "," + fixed(py(y), 2) + " ";
-      svg += "<polyline fill=\"none\" " + stroke(s) + " points=\"" + points + "\"/>\n";
+      svg += "<polyline fill=\"none\" " + svg_stroke(s) + " points=\"" + points + "\"/>\n";
     }
     if (s.markers) {
       for (std::size_t i = 0; i < s.points.size(); ++i) {
@@ -150,20 +77,7 @@ std::string plot_svg(const std::string& title, const std::string& x_label, const
   const double lx = left + 16, ly = top + 16;
   svg += "<rect x=\"" + fixed(lx - 8, 1) + "\" y=\"" + fixed(ly - 12, 1) + "\" width=\"290\" height=\"" +
          fixed(22.0 * static_cast<double>(series.size()) + 4, 1) + "\" fill=\"white\" stroke=\"#999999\"/>\n";
-  for (std::size_t i = 0; i < series.size(); ++i) {
-    const Series& s = series[i];
-    const double y = ly + 22.0 * static_cast<double>(i);
-    if (s.line) {
-      svg += "<line x1=\"" + fixed(lx, 1) + "\" y1=\"" + fixed(y, 1) + "\" x2=\"" + fixed(lx + 30, 1) +
-             "\" y2=\"" + fixed(y, 1) + "\" " + stroke(s) + "/>\n";
-    }
-    if (s.markers) {
-      svg += "<circle cx=\"" + fixed(lx + 15, 1) + "\" cy=\"" + fixed(y, 1) + "\" r=\"3\" fill=\"" + s.color +
-             "\"/>\n";
-    }
-    svg += "<text x=\"" + fixed(lx + 40, 1) + "\" y=\"" + fixed(y + 4, 1) + "\">" + escape(s.label) +
-           "</text>\n";
-  }
+  svg += svg_legend_entries(lx, ly, series);
   svg += "</svg>\n";
   return svg;
 }
@@ -250,8 +164,8 @@ std::string deformation_svg(const Curve& series, double capillary_number, double
                             const std::string& title) {
   const int ix = series.column("strain");
   const int id = series.column("taylor_deformation");
-  std::vector<Series> plot;
-  Series simulation;
+  std::vector<PlotSeries> plot;
+  PlotSeries simulation;
   simulation.color = kSimulation;
   simulation.label = "simulation D";
   double x_max = 0.0;
@@ -263,7 +177,7 @@ std::string deformation_svg(const Curve& series, double capillary_number, double
   }
   plot.push_back(simulation);
   if (steady_taylor_deformation > 0.0 && x_max > 0.0) {
-    Series steady;
+    PlotSeries steady;
     steady.color = kSimulation;
     steady.dash = "2,4";
     steady.label = "steady D = " + fixed(steady_taylor_deformation, 4);
@@ -271,7 +185,7 @@ std::string deformation_svg(const Curve& series, double capillary_number, double
     plot.push_back(steady);
   }
   if (capillary_number > 0.0 && x_max > 0.0) {
-    Series roscoe;
+    PlotSeries roscoe;
     roscoe.color = kTheory;
     roscoe.dash = "7,5";
     // D = (5/4) Ca   (Roscoe 1967, small-Ca limit; shared/validation/README.md)
@@ -289,7 +203,7 @@ std::string steady_deformation_svg(const std::vector<SteadyPoint>& points, const
     return a.capillary_number < b.capillary_number;
   });
   double ca_max = 0.0;
-  Series simulation;
+  PlotSeries simulation;
   simulation.color = kSimulation;
   simulation.line = false;  // separate jobs: markers only
   simulation.markers = true;
@@ -301,7 +215,7 @@ std::string steady_deformation_svg(const std::vector<SteadyPoint>& points, const
   }
   const double x_hi = nice_ticks(0.0, ca_max > 0 ? ca_max : 1.0).back();
   // Theory over the plotted Ca range (the table ends at Ca = 2).
-  Series table;
+  PlotSeries table;
   table.color = kTable;
   table.label = "Roscoe, \u03bb = 1";
   for (const RoscoePoint& r : roscoe_lambda1()) {
@@ -312,7 +226,7 @@ std::string steady_deformation_svg(const std::vector<SteadyPoint>& points, const
   for (const SteadyPoint& p : sorted) d_max = std::max(d_max, p.steady_taylor_deformation);
   for (const auto& [ca, d] : table.points) d_max = std::max(d_max, d);
   const double y_hi = nice_ticks(0.0, d_max > 0 ? d_max : 1.0).back();
-  Series small;
+  PlotSeries small;
   small.color = kTheory;
   small.dash = "7,5";
   small.label = "small-Ca limit D = 5/4 Ca";

@@ -9,6 +9,8 @@ build_dir=${CELLFLOW_BUILD_DIR:-build}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build_dir" -j "$(nproc)" --target cellflow-server cellflow-worker cellflow cellflow-run
 
+# the server's workers inherit it: idle OpenMP threads sleep, not spin
+export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-passive}
 out=${CELLFLOW_DEMO_DIR:-demo-out}
 mkdir -p "$out"
 data_dir=$(mktemp -d)

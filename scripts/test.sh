@@ -5,6 +5,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 build_dir=${CELLFLOW_BUILD_DIR:-build}
 jobs=${CELLFLOW_JOBS:-$(nproc)}
+# Tests run side by side: idle OpenMP threads must sleep, not spin on a core
+# another test needs.
+export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-passive}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build "$build_dir" -j "$jobs"
 ctest --test-dir "$build_dir" --output-on-failure -j "$jobs" -LE "long|stability" "$@"

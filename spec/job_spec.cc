@@ -41,6 +41,11 @@ scenes::QuasiStaticOptions to_numerics(const v1::QuasiStaticNumerics& n) {
   if (n.has_max_step_splits()) options.max_step_splits = n.max_step_splits();
   if (n.has_contact_stiffness_n_per_m()) options.contact_stiffness_n_per_m = n.contact_stiffness_n_per_m();
   if (n.has_contact_range_m()) options.contact_range_m = n.contact_range_m();
+  if (n.volumetric_term() == v1::VOLUMETRIC_TERM_PER_TET) {
+    options.volumetric = elastic::VolumetricTerm::kPerTet;
+  } else if (n.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {
+    options.volumetric = elastic::VolumetricTerm::kNodalAverage;
+  }
   return options;
 }
 

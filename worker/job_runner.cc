@@ -17,14 +17,53 @@ namespace cellflow::worker {
 
 namespace {
 
+// What both recorders share: the result file they write and the first write
+// that failed (later writes still run, so the file holds all it can).
+class ResultRecorder {
+ protected:
+  explicit ResultRecorder(io::H5mdWriter* writer) : writer_(writer) {}
+
+  void keep(Status s) {
+    if (status_.ok() && !s.ok()) status_ = std::move(s);
+  }
+
+  // The cell's tetrahedra with their region (as bytes) per tet.
+  void write_connectivity(const mesh::TetMesh& mesh) {
+    std::vector<std::uint8_t> region(mesh.tet_region.size());
+    for (std::size_t i = 0; i < region.size(); ++i) region[i] = static_cast<std::uint8_t>(mesh.tet_region[i]);
+    keep(writer_->write_tetrahedra("cell", mesh.tets, region));
+  }
+
+  io::H5mdWriter* writer_;
+  Status status_;
+};
+
+// A result file named by `options`, with the job spec as /parameters.
+StatusOr<std::unique_ptr<io::H5mdWriter>> open_result(const v1::JobSpec& spec, const RunOptions& options,
+                                                      const io::H5mdCreator& creator) {
+  auto writer = io::H5mdWriter::create(options.result_path, creator);
+  if (!writer.ok()) return writer.status();
+  if (Status s = (*writer)->write_parameters_json(spec::job_spec_to_json(spec)); !s.ok()) return s;
+  return writer;
+}
+
+// The run's outcome: the scene's error first, else the result file's.
+RunOutcome outcome_of(const Status& scene_status, const Status& written, int samples) {
+  RunOutcome outcome;
+  outcome.samples = samples;
+  outcome.result_written = written.ok();
+  outcome.status = !scene_status.ok() ? scene_status : written;
+  return outcome;
+}
+
 // Writes one quasi-static run: the mesh, chosen position frames and every
 // curve point. Frames are kept for the reference state, every k-th load point
 // and the last computed point (also when the run stops early).
-class QuasiStaticRecorder {
+class QuasiStaticRecorder : public ResultRecorder {
  public:
   QuasiStaticRecorder(io::H5mdWriter* writer, int load_points, int frames, const JobEvents& events,
                       int debug_delay_ms)
-      : writer_(writer), load_points_(load_points), events_(events), debug_delay_ms_(debug_delay_ms) {
+      : ResultRecorder(writer), load_points_(load_points), events_(events), debug_delay_ms_(debug_delay_ms) {
     const int wanted = std::max(frames, 1);
     every_ = std::max(1, (load_points + wanted - 1) / wanted);
   }
@@ -58,16 +97,10 @@ class QuasiStaticRecorder {
   int points() const { return points_; }
 
  private:
-  void keep(Status s) {
-    if (status_.ok() && !s.ok()) status_ = std::move(s);
-  }
-
   bool chosen(int index) const { return (index + 1) % every_ == 0 || index == load_points_ - 1; }
 
   void on_mesh(const mesh::TetMesh& mesh) {
-    std::vector<std::uint8_t> region(mesh.tet_region.size());
-    for (std::size_t i = 0; i < region.size(); ++i) region[i] = static_cast<std::uint8_t>(mesh.tet_region[i]);
-    keep(writer_->write_tetrahedra("cell", mesh.tets, region));
+    write_connectivity(mesh);
     // Step 0, "time" (the load parameter, deformation) 0: the reference state.
     keep(writer_->append_positions("cell", 0, 0.0, mesh.positions_m));
     keep(writer_->flush());
@@ -124,7 +157,6 @@ class QuasiStaticRecorder {
     }
   }
 
-  io::H5mdWriter* writer_;
   int load_points_;
   int every_ = 1;
   const JobEvents& events_;
@@ -134,7 +166,6 @@ class QuasiStaticRecorder {
   int last_index_ = -1;
   int last_written_index_ = -1;
   int points_ = 0;
-  Status status_;
 };
 
 template <class Params>
@@ -147,24 +178,17 @@ RunOutcome run_quasi_static(const v1::JobSpec& spec, Params params, const RunOpt
   io::H5mdCreator creator;
   creator.program_version = options.program_version;
   creator.time_unit = "1 (deformation: the load parameter of a quasi-static curve)";
-  auto writer = io::H5mdWriter::create(options.result_path, creator);
+  auto writer = open_result(spec, options, creator);
   if (!writer.ok()) {
     outcome.status = writer.status();
-    return outcome;
-  }
-  if (Status s = (*writer)->write_parameters_json(spec::job_spec_to_json(spec)); !s.ok()) {
-    outcome.status = s;
     return outcome;
   }
   QuasiStaticRecorder recorder(writer->get(), params.load_points, options.position_frames, events,
                                options.debug_delay_per_point_ms);
   if (events.progress) events.progress(0.0, "meshing");
   scenes::QuasiStaticResult result = scene(params, recorder.callbacks());
-  Status written = recorder.finish();
-  outcome.samples = recorder.points();
-  outcome.result_written = written.ok();
-  outcome.status = !result.status.ok() ? result.status : written;
-  return outcome;
+  const Status written = recorder.finish();
+  return outcome_of(result.status, written, recorder.points());
 }
 
 // Writes one shear-flow run: the mesh connectivity once, the cell positions
@@ -172,11 +196,11 @@ RunOutcome run_quasi_static(const v1::JobSpec& spec, Params params, const RunOpt
 // velocity snapshots when the spec asks for them, the resolved setup up front
 // and the steady values at the end. Time is physical (s); the H5MD step is
 // the lattice time step.
-class FlowRecorder {
+class FlowRecorder : public ResultRecorder {
  public:
   FlowRecorder(io::H5mdWriter* writer, const scenes::ShearFlowSetup& setup, double max_strain,
                const JobEvents& events)
-      : writer_(writer), setup_(setup), max_strain_(max_strain), events_(events) {}
+      : ResultRecorder(writer), setup_(setup), max_strain_(max_strain), events_(events) {}
 
   scenes::ShearFlowCallbacks callbacks() {
     scenes::ShearFlowCallbacks cb;
@@ -260,18 +284,12 @@ class FlowRecorder {
   int samples() const { return samples_; }
 
  private:
-  void keep(Status s) {
-    if (status_.ok() && !s.ok()) status_ = std::move(s);
-  }
-
   std::int64_t step_of(double time_s) const {
     return setup_.time_step_s > 0.0 ? std::llround(time_s / setup_.time_step_s) : 0;
   }
 
   void on_mesh(const mesh::TetMesh& mesh) {
-    std::vector<std::uint8_t> region(mesh.tet_region.size());
-    for (std::size_t i = 0; i < region.size(); ++i) region[i] = static_cast<std::uint8_t>(mesh.tet_region[i]);
-    keep(writer_->write_tetrahedra("cell", mesh.tets, region));
+    write_connectivity(mesh);
     keep(writer_->flush());
   }
 
@@ -297,13 +315,11 @@ class FlowRecorder {
     if (events_.deformation_sample) events_.deformation_sample(deformation_sample_from(s));
   }
 
-  io::H5mdWriter* writer_;
   scenes::ShearFlowSetup setup_;
   double max_strain_;
   const JobEvents& events_;
   double last_strain_ = 0.0;
   int samples_ = 0;
-  Status status_;
 };
 
 RunOutcome run_shear_flow_job(const v1::JobSpec& spec, scenes::ShearFlowParams params,
@@ -317,23 +333,17 @@ RunOutcome run_shear_flow_job(const v1::JobSpec& spec, scenes::ShearFlowParams p
   }
   io::H5mdCreator creator;
   creator.program_version = options.program_version;
-  auto writer = io::H5mdWriter::create(options.result_path, creator);
+  auto writer = open_result(spec, options, creator);
   if (!writer.ok()) {
     outcome.status = writer.status();
-    return outcome;
-  }
-  if (Status s = (*writer)->write_parameters_json(spec::job_spec_to_json(spec)); !s.ok()) {
-    outcome.status = s;
     return outcome;
   }
   FlowRecorder recorder(writer->get(), *setup, params.numerics.max_strain, events);
   recorder.write_setup();
   if (events.progress) events.progress(0.0, "meshing");
   const scenes::ShearFlowResult result = scenes::run_shear_flow(params, recorder.callbacks());
-  Status written = recorder.finish(result);
-  outcome.samples = recorder.samples();
-  outcome.result_written = written.ok();
-  outcome.status = !result.status.ok() ? result.status : written;
+  const Status written = recorder.finish(result);
+  outcome = outcome_of(result.status, written, recorder.samples());
   if (outcome.status.ok() && events.progress)
     events.progress(1.0, std::string(scenes::stop_name(result.stop)));
   return outcome;

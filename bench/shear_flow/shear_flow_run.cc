@@ -38,6 +38,9 @@ int main(int argc, char** argv) {
     std::sscanf(args["box"].c_str(), "%lf,%lf,%lf", &n.box_x_radii, &n.box_y_radii, &n.box_z_radii);
   }
   n.target_reynolds_number = get("re", n.target_reynolds_number);
+  if (args.count("nodal"))
+    n.volumetric =
+        get("nodal", 0.0) != 0.0 ? elastic::VolumetricTerm::kNodalAverage : elastic::VolumetricTerm::kPerTet;
   n.relaxation_time = get("tau", n.relaxation_time);
   n.single_precision = get("float", n.single_precision ? 1 : 0) != 0;
   if (args.count("kernel")) {

@@ -352,6 +352,15 @@ ElasticEvaluation elastic_energy(const ElasticBody& body, const double* position
   return elastic_energy(body, positions_m, 0);
 }
 
+VolumeRatioMinimum min_volume_ratio(const ElasticBody& body, const double* positions_m) {
+  VolumeRatioMinimum minimum;
+  for (std::size_t t = 0; t < body.num_tets(); ++t) {
+    const double ratio = deformed_volume(positions_m, body.tets.data() + 4 * t) / body.ref_volume_m3[t];
+    if (ratio < minimum.volume_ratio) minimum = {ratio, static_cast<std::int64_t>(t)};
+  }
+  return minimum;
+}
+
 TetColouring colour_tets(std::span<const std::int32_t> tets, std::size_t num_vertices,
                          std::int64_t group_size) {
   const std::int64_t num_tets = static_cast<std::int64_t>(tets.size() / 4);

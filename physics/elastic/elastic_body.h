@@ -75,6 +75,13 @@ ElasticEvaluation elastic_energy(const ElasticBody& body, const double* position
 // As above with an OpenMP thread count (<= 0: the OpenMP default).
 ElasticEvaluation elastic_energy(const ElasticBody& body, const double* positions_m, int threads);
 
+// The smallest J = v / V0 over the tetrahedra at positions_m and its tet.
+struct VolumeRatioMinimum {
+  double volume_ratio = 1.0;
+  std::int64_t tet = -1;
+};
+VolumeRatioMinimum min_volume_ratio(const ElasticBody& body, const double* positions_m);
+
 // Groups of `group_size` consecutive tetrahedra (group g = tets [g s, g s + s))
 // coloured such that no two groups of one colour share a vertex (greedy, in
 // order): a colour can be scattered in parallel without races. Groups of

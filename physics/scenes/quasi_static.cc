@@ -35,6 +35,10 @@ constexpr int kMaxStepSplits = 30;
 constexpr int kMaxLoadPoints = 100000;
 // A contact range beyond a tenth of the radius would blur the first contact.
 constexpr double kMaxContactRangeRadii = 0.1;
+// Smallest element volume ratio J a load point may reach. Converged curves to
+// deformation 0.9 reach 0.34-0.49 (nu 0.45-0.499); collapsing ones fall
+// below 0.1 (bench/stability). Below it the point is not trusted.
+constexpr double kMinVolumeRatio = 0.2;
 
 void validate_numerics(const QuasiStaticOptions& n, double radius_m, const std::string& prefix,
                        std::string& message) {
@@ -162,6 +166,21 @@ QuasiStaticResult run_load_points(Setup& setup, const CellParams& cell, const Qu
       result.status = numerical_failure("load step " + std::to_string(i) + " of " +
                                         std::to_string(load_points) + " (target deformation " +
                                         format_number(travel / diameter) + "): " + step.message);
+      return result;
+    }
+    // The volumetric energy kappa/2 (J - 1)^2 of eq. (5) stays below kappa/2
+    // as J -> 0: under a large enough load an element can give up its volume
+    // at bounded cost and the curve drops, converged but wrong (seen at
+    // deformation 0.81 with nu = 0.45, w = 0.5). Such a point ends the run.
+    const elastic::VolumeRatioMinimum crushed =
+        elastic::min_volume_ratio(setup.body, path.positions_m().data());
+    if (crushed.volume_ratio < kMinVolumeRatio) {
+      result.status = numerical_failure(
+          "load step " + std::to_string(i) + " of " + std::to_string(load_points) + " (target deformation " +
+          format_number(travel / diameter) + "): tetrahedron " + std::to_string(crushed.tet) +
+          " is compressed to J = " + format_number(crushed.volume_ratio) + " of its volume (below " +
+          format_number(kMinVolumeRatio) +
+          "): the volumetric energy of eq. 5 no longer holds the volume; the curve ends before it");
       return result;
     }
     CurvePoint point;

@@ -28,6 +28,11 @@ constexpr int kMaxAttempts = 10;
 
 constexpr std::int64_t kMinParallelDofs = 6000;
 
+// Newton iterations of one solve after which the linear solves are made
+// accurate (forcing term at most kHardStateForcing), see solve().
+constexpr int kSlowNewtonIterations = 2;
+constexpr double kHardStateForcing = 1e-3;
+
 int team_size(int threads) {
   return threads > 0 ? threads : omp_get_max_threads();
 }
@@ -461,6 +466,13 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
       if (0.9 * forcing * forcing > 0.1) next = std::max(next, 0.9 * forcing * forcing);
       forcing = std::min(options_.max_forcing_term, next);
     }
+    // Past the first kSlowNewtonIterations of a solve the Newton system is
+    // solved accurately: at large compression (stiff contact rows beside soft
+    // rim modes) the truncated CG directions of a loose forcing term make
+    // Newton cycle. Measured (w = 0.25, 3000 vertices, to 0.9 in 45 points):
+    // the curve reaches 0.80 instead of 0.66 (after 5 or 8 iterations: 0.68);
+    // the 40-point curve takes about 20 % longer.
+    if (iteration >= kSlowNewtonIterations) forcing = std::min(forcing, kHardStateForcing);
     // No point in solving the linear system beyond a tenth of the target.
     const double absolute_tolerance = 0.1 * options_.residual_tolerance * scale;
 

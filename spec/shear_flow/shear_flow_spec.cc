@@ -92,6 +92,11 @@ StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec, std::
   if (in.has_target_reynolds_number()) n.target_reynolds_number = in.target_reynolds_number();
   if (in.has_max_strain()) n.max_strain = in.max_strain();
   if (in.has_max_stiffness_ratio()) n.max_stiffness_ratio = in.max_stiffness_ratio();
+  if (in.volumetric_term() == v1::VOLUMETRIC_TERM_PER_TET) {
+    n.volumetric = elastic::VolumetricTerm::kPerTet;
+  } else if (in.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {
+    n.volumetric = elastic::VolumetricTerm::kNodalAverage;
+  }
 
   // Fields, ranges, Mach number and memory; the stability check needs the
   // mesh and runs at the start of run_shear_flow.

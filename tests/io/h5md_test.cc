@@ -17,26 +17,16 @@
 #include <vector>
 
 #include "physics/io/xdmf.h"
+#include "tests/io/h5_test_util.h"
 
 namespace cellflow::io {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string run_command(const std::string& command, int* exit_code) {
-  std::string output;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) {
-    *exit_code = -1;
-    return output;
-  }
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, n);
-  const int status = pclose(pipe);
-  *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return output;
-}
+using testing::count_existing_items;
+using testing::read_valid_xml;
+using testing::run_command;
 
 class H5mdTest : public ::testing::Test {
  protected:
@@ -148,27 +138,10 @@ TEST_F(H5mdTest, XdmfIsValidXmlNamingExistingDatasets) {
   const std::string path = write_example(4);
   const std::string xdmf = (dir_ / "job.xdmf").string();
   ASSERT_TRUE(write_xdmf(path, xdmf).ok());
-  int code = 0;
-  const std::string lint = run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + xdmf, &code);
-  EXPECT_EQ(code, 0) << lint;
-
-  std::ifstream in(xdmf);
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string xml = text.str();
+  const std::string xml = read_valid_xml(xdmf);
   EXPECT_EQ(xml.find("HyperSlab"), std::string::npos);
-  const std::regex item(R"(>job\.h5:(/[^<]+)</DataItem>)");
-  hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  int items = 0;
-  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), item); it != std::sregex_iterator(); ++it) {
-    const std::string dataset = (*it)[1];
-    ++items;
-    EXPECT_GT(H5Oexists_by_name(file, dataset.c_str(), H5P_DEFAULT), 0) << dataset;
-  }
-  H5Fclose(file);
   // 3 frames x (topology, geometry, region).
-  EXPECT_EQ(items, 9);
+  EXPECT_EQ(count_existing_items(path, xml, std::regex(R"(>job\.h5:(/[^<]+)</DataItem>)")), 9);
   const std::regex grid(R"(GridType="Uniform")");
   EXPECT_EQ(std::distance(std::sregex_iterator(xml.begin(), xml.end(), grid), std::sregex_iterator()), 3);
 }
@@ -231,13 +204,7 @@ TEST_F(H5mdTest, VectorFieldFramesAndXdmfBesideTheCell) {
 
   const std::string xdmf = (dir_ / "flow.xdmf").string();
   ASSERT_TRUE(write_xdmf(path, xdmf).ok());
-  int code = 0;
-  const std::string lint = run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + xdmf, &code);
-  EXPECT_EQ(code, 0) << lint;
-  std::ifstream in(xdmf);
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string xml = text.str();
+  const std::string xml = read_valid_xml(xdmf);
   EXPECT_NE(xml.find("TopologyType=\"3DCoRectMesh\" Dimensions=\"2 3 4\""), std::string::npos) << xml;
   EXPECT_NE(xml.find(">flow.h5:/fields/fluid_velocity/frame_000001</DataItem>"), std::string::npos) << xml;
   EXPECT_NE(xml.find(">flow.h5:/xdmf/cell/frame_000001</DataItem>"), std::string::npos) << xml;

@@ -115,6 +115,18 @@ TEST(Compression, PenetrationStaysBelowHalfAPercentOfTheRadius) {
   for (const CurvePoint& p : r.curve) EXPECT_LE(p.residual, 1e-6);
 }
 
+// A coarse strain-hardening cell (200 vertices, w = 0.25) compressed to 0.9:
+// at 0.84 an element gives up its volume (eq. 5's volumetric energy is bounded
+// as J -> 0). The run must end there naming the element, not return a curve
+// whose force drops (bench/stability found such curves before the guard).
+TEST(Compression, CrushedElementEndsTheRunInsteadOfAWrongCurve) {
+  const QuasiStaticResult r = run_compression(cell(200, 0.25, 0.9, 30));
+  ASSERT_EQ(r.status.code(), StatusCode::kNumericalFailure) << r.status.to_string();
+  EXPECT_NE(r.status.message().find("is compressed to J = "), std::string::npos) << r.status.message();
+  ASSERT_GT(r.curve.size(), 20u);  // the points before it are kept
+  for (std::size_t i = 1; i < r.curve.size(); ++i) EXPECT_GT(r.curve[i].force_n, r.curve[i - 1].force_n);
+}
+
 TEST(Compression, CallbacksAndCancellation) {
   int points = 0, meshes = 0, positions = 0;
   double last_progress = 0.0;

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "client/rpc_client.h"
+#include "tests/io/h5_test_util.h"  // run_command, read_text
 
 namespace cellflow::testing {
 
@@ -110,22 +111,6 @@ inline bool eventually(const std::function<bool()>& condition, std::chrono::mill
   return condition();
 }
 
-// Runs a command, returns its output (stdout and stderr) and exit code.
-inline std::string run_command(const std::string& command, int* exit_code) {
-  std::string output;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) {
-    *exit_code = -1;
-    return output;
-  }
-  char buffer[4096];
-  std::size_t n;
-  while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, n);
-  const int status = ::pclose(pipe);
-  *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return output;
-}
-
 class ServiceTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -195,6 +180,20 @@ class ServiceTest : public ::testing::Test {
 
   bool wait_state(const std::string& id, v1::Job::State state, std::chrono::milliseconds timeout) {
     return eventually([&] { return get(id).state() == state; }, timeout);
+  }
+
+  // Cancels running job `running` and waits (2 s at most) for the worker to
+  // lease queued job `next`; *moved_on_s is how long that took (also printed).
+  void cancel_and_await_next(const std::string& running, const std::string& next, const char* what,
+                             double* moved_on_s) {
+    const auto cancelled_at = std::chrono::steady_clock::now();
+    v1::Job job;
+    ASSERT_TRUE(client_->cancel(running, &job).ok());
+    EXPECT_EQ(job.state(), v1::Job::CANCELLED);
+    ASSERT_TRUE(eventually([&] { return get(next).state() != v1::Job::QUEUED; }, std::chrono::seconds(2)))
+        << "worker did not move on";
+    *moved_on_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - cancelled_at).count();
+    std::printf("%s -> the worker leased the next job after %.3f s\n", what, *moved_on_s);
   }
 
   std::string submit(const v1::JobSpec& spec, const std::string& request_id = "") {

@@ -201,15 +201,9 @@ TEST_F(ServiceTest, CancelStopsRunningJobAndWorkerTakesNext) {
   ASSERT_TRUE(
       eventually([&] { return get(a).state() == v1::Job::RUNNING && get(a).last_sequence() >= 4; }, 30s));
   const std::string worker_a = get(a).worker_id();
-  const auto cancelled_at = std::chrono::steady_clock::now();
-  v1::Job job;
-  ASSERT_TRUE(client_->cancel(a, &job).ok());
-  EXPECT_EQ(job.state(), v1::Job::CANCELLED);
   // The single worker must stop job a and lease job b.
-  ASSERT_TRUE(eventually([&] { return get(b).state() != v1::Job::QUEUED; }, 2s)) << "worker did not move on";
-  const double moved_on_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - cancelled_at).count();
-  std::printf("cancel -> the worker leased the next job after %.3f s\n", moved_on_s);
+  double moved_on_s = 0.0;
+  ASSERT_NO_FATAL_FAILURE(cancel_and_await_next(a, b, "cancel", &moved_on_s));
   EXPECT_LT(moved_on_s, 2.0);
   EXPECT_EQ(get(b).worker_id(), worker_a);
   EXPECT_TRUE(wait_state(b, v1::Job::SUCCEEDED, 30s));
@@ -217,6 +211,7 @@ TEST_F(ServiceTest, CancelStopsRunningJobAndWorkerTakesNext) {
   EXPECT_EQ(final_a.state(), v1::Job::CANCELLED);
   EXPECT_EQ(final_a.result_size_bytes(), 0);
   // A cancelled job cannot be un-cancelled; a succeeded one cannot be cancelled.
+  v1::Job job;
   EXPECT_EQ(client_->cancel(b, &job).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
   // Watching the cancelled job replays up to CANCELLED and ends.
   Watcher replay(*client_, a);
@@ -434,22 +429,8 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   ASSERT_TRUE(frames.ok());
   EXPECT_GE(*frames, 2);  // reference and final at least
 
-  const std::string lint = run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + xdmf, &code);
-  EXPECT_EQ(code, 0) << lint;
-  std::ifstream in(xdmf);
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string xml = text.str();
-  const std::regex item(R"(>cli\.h5:(/[^<]+)</DataItem>)");
-  hid_t file = H5Fopen(h5.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  int items = 0;
-  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), item); it != std::sregex_iterator(); ++it) {
-    ++items;
-    EXPECT_GT(H5Oexists_by_name(file, (*it)[1].str().c_str(), H5P_DEFAULT), 0) << (*it)[1];
-  }
-  H5Fclose(file);
-  EXPECT_GE(items, 2 * *frames);
+  const std::string xml = read_valid_xml(xdmf);
+  EXPECT_GE(count_existing_items(h5, xml, std::regex(R"(>cli\.h5:(/[^<]+)</DataItem>)")), 2 * *frames);
 
   // CSV: one line per point, the force column equal to the file's, and the
   // very text cellflow-run writes for the same spec.

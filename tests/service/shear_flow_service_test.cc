@@ -50,13 +50,6 @@ std::vector<v1::DeformationSample> deformation_samples(const std::vector<v1::Job
   return out;
 }
 
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
 double relative_difference(double a, double b) {
   const double scale = std::max(std::fabs(a), std::fabs(b));
   return scale == 0.0 ? 0.0 : std::fabs(a - b) / scale;
@@ -170,23 +163,11 @@ TEST_F(ServiceTest, ShearFlowJobStreamsSamplesAndWritesTrajectoryAndFlow) {
   ASSERT_EQ(code, 0) << printed;
   const fs::path xdmf = fs::path(fetched).replace_extension(".xdmf");
   ASSERT_TRUE(fs::exists(xdmf)) << printed;
-  const std::string lint = run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + xdmf.string(), &code);
-  EXPECT_EQ(code, 0) << lint;
-  const std::string xml = read_text(xdmf);
+  const std::string xml = read_valid_xml(xdmf);
   EXPECT_NE(xml.find("TopologyType=\"Tetrahedron\""), std::string::npos);
   EXPECT_NE(xml.find("TopologyType=\"3DCoRectMesh\""), std::string::npos);
-  const std::regex item(R"(>flow\.h5:(/[^<]+)</DataItem>)");
-  hid_t file = H5Fopen(fetched.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  ASSERT_GE(file, 0);
-  int items = 0;
-  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), item); it != std::sregex_iterator(); ++it) {
-    const std::string dataset = (*it)[1];
-    ++items;
-    EXPECT_GT(H5Oexists_by_name(file, dataset.c_str(), H5P_DEFAULT), 0) << dataset;
-  }
-  H5Fclose(file);
   // 5 cell frames x (topology, geometry, region) + 5 fluid frames x velocity.
-  EXPECT_EQ(items, 5 * 3 + 5);
+  EXPECT_EQ(count_existing_items(fetched, xml, std::regex(R"(>flow\.h5:(/[^<]+)</DataItem>)")), 5 * 3 + 5);
 
   // result --csv: the D(t) table, one row per sample, the same as cellflow-run's.
   const std::string csv = run_command(cli + " result " + id + " --csv", &code);
@@ -266,14 +247,8 @@ TEST_F(ServiceTest, ShearFlowCancelStopsTheWorkerWhichTakesTheNextJob) {
   const std::string b = submit(small_shear_flow());
   Watcher watcher(*client_, a);
   ASSERT_TRUE(eventually([&] { return watcher.max_sample_index() >= 3; }, 30s)) << "no samples";
-  const auto cancelled_at = std::chrono::steady_clock::now();
-  v1::Job job;
-  ASSERT_TRUE(client_->cancel(a, &job).ok());
-  EXPECT_EQ(job.state(), v1::Job::CANCELLED);
-  ASSERT_TRUE(eventually([&] { return get(b).state() != v1::Job::QUEUED; }, 2s)) << "worker did not move on";
-  const double moved_on_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - cancelled_at).count();
-  std::printf("flow cancel -> the worker leased the next job after %.3f s\n", moved_on_s);
+  double moved_on_s = 0.0;
+  ASSERT_NO_FATAL_FAILURE(cancel_and_await_next(a, b, "flow cancel", &moved_on_s));
   EXPECT_TRUE(wait_state(b, v1::Job::SUCCEEDED, 30s));
   watcher.join();
   const std::vector<v1::JobEvent> events = watcher.events();

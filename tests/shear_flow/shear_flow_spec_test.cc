@@ -42,6 +42,7 @@ TEST(ShearFlowSpec, DefaultsOfUnsetFields) {
   EXPECT_EQ(p->numerics.ibm_kernel, ibm::Kernel::kPeskin4);
   EXPECT_EQ(p->numerics.single_precision, defaults.numerics.single_precision);
   EXPECT_DOUBLE_EQ(p->numerics.max_strain, defaults.numerics.max_strain);
+  EXPECT_EQ(p->numerics.volumetric, elastic::VolumetricTerm::kPerTet);
 }
 
 TEST(ShearFlowSpec, MapsEverySetField) {
@@ -72,6 +73,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   n->set_target_reynolds_number(0.05);
   n->set_max_strain(12.0);
   n->set_max_stiffness_ratio(1.5);
+  n->set_volumetric_term(v1::VOLUMETRIC_TERM_NODAL_AVERAGE);
   const StatusOr<scenes::ShearFlowParams> p = to_params(spec);
   ASSERT_TRUE(p.ok()) << p.status().to_string();
   EXPECT_EQ(p->cell.target_vertex_count, 500);
@@ -102,6 +104,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   EXPECT_DOUBLE_EQ(m.target_reynolds_number, 0.05);
   EXPECT_DOUBLE_EQ(m.max_strain, 12.0);
   EXPECT_DOUBLE_EQ(m.max_stiffness_ratio, 1.5);
+  EXPECT_EQ(m.volumetric, elastic::VolumetricTerm::kNodalAverage);
 }
 
 TEST(ShearFlowSpec, ReadsTheProtobufJsonMapping) {

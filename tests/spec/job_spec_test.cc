@@ -37,6 +37,7 @@ TEST(JobSpec, DefaultsOfUnsetOptionalFields) {
   EXPECT_EQ(p->numerics.max_step_splits, 10);
   EXPECT_FALSE(p->numerics.contact_stiffness_n_per_m.has_value());
   EXPECT_FALSE(p->numerics.contact_range_m.has_value());
+  EXPECT_EQ(p->numerics.volumetric, elastic::VolumetricTerm::kNodalAverage);
   EXPECT_TRUE(validate(*spec).ok());
 }
 
@@ -48,7 +49,7 @@ TEST(JobSpec, ExplicitFieldsAreKept) {
                "targetVertexCount": 800},
       "probeRadiusM": 26.5e-6, "maxIndentationM": 8e-6, "loadPoints": 7,
       "numerics": {"residualTolerance": 1e-8, "maxNewtonIterations": 12, "maxStepSplits": 0,
-                   "contactStiffnessNPerM": 0.5, "contactRangeM": 1e-8}
+                   "contactStiffnessNPerM": 0.5, "contactRangeM": 1e-8, "volumetricTerm": "VOLUMETRIC_TERM_PER_TET"}
     }
   })");
   ASSERT_TRUE(spec.ok()) << spec.status().to_string();
@@ -69,6 +70,7 @@ TEST(JobSpec, ExplicitFieldsAreKept) {
   EXPECT_EQ(p->numerics.max_step_splits, 0);
   EXPECT_EQ(p->numerics.contact_stiffness_n_per_m.value(), 0.5);
   EXPECT_EQ(p->numerics.contact_range_m.value(), 1e-8);
+  EXPECT_EQ(p->numerics.volumetric, elastic::VolumetricTerm::kPerTet);
 }
 
 TEST(JobSpec, UnknownAndMalformedJsonIsRefused) {

@@ -42,6 +42,7 @@
 #include <vector>
 
 #include "physics/core/status.h"
+#include "physics/elastic/elastic_body.h"
 #include "physics/ibm/ibm.h"
 #include "physics/mesh/tet_mesh.h"
 #include "physics/scenes/cell_params.h"
@@ -97,6 +98,15 @@ struct ShearFlowNumerics {
   // 6 pi eta_lb dx. 0: the calibrated limit of the kernel,
   // default_stiffness_limit(ibm_kernel). In [0, 100].
   double max_stiffness_ratio = 0.0;
+  // The volumetric term of eq. (5): per tet as in the paper (default), or
+  // averaged over the tets around each vertex (elastic_body.h). At Ca = 0.05,
+  // 6 cells per radius, 3000 vertices (bench/shear_flow/shear_flow_run):
+  // steady D +20.3 % above (5/4) Ca per tet, +12.1 % with the average;
+  // inclination -0.79 and +0.85 degrees from Roscoe's; the same cost per
+  // step. Not yet the default: the average's stiffest modes are less damped
+  // by the kernel, so its stiffness limit is halved (calibrated for peskin4
+  // only, see the run's stability check).
+  elastic::VolumetricTerm volumetric = elastic::VolumetricTerm::kPerTet;
   int threads = 0;  // OpenMP threads; 0 = OpenMP default
 };
 

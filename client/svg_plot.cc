@@ -1,0 +1,123 @@
+#include "client/svg_plot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace cellflow::client {
+
+std::string fixed(double value, int digits) {
+  char buffer[40];
+  std::snprintf(buffer, sizeof buffer, "%.*f", digits, value);
+  return buffer;
+}
+
+int decimals_for(double step) {
+  return std::max(0, static_cast<int>(std::ceil(-std::log10(step) - 1e-9)));
+}
+
+std::string escape_xml(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '&')
+      out += "&amp;";
+    else if (c == '<')
+      out += "&lt;";
+    else if (c == '>')
+      out += "&gt;";
+    else if (c == '"')
+      out += "&quot;";
+    else
+      out += c;
+  }
+  return out;
+}
+
+std::vector<double> nice_ticks(double lo, double hi, int target_count) {
+  if (!(hi > lo)) hi = lo + 1.0;
+  const double raw = (hi - lo) / std::max(target_count - 1, 1);
+  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
+  double step = magnitude;
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    step = m * magnitude;
+    if (step >= raw) break;
+  }
+  std::vector<double> ticks;
+  for (double t = std::floor(lo / step) * step; t <= hi + 0.5 * step; t += step) {
+    ticks.push_back(std::fabs(t) < 1e-12 * step ? 0.0 : t);
+    if (t >= hi - 1e-9 * step) break;
+  }
+  return ticks;
+}
+
+std::string svg_open(const PlotFrame& frame, const std::string& title) {
+  std::string svg;
+  svg += "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+  svg += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + fixed(frame.width, 0) + "\" height=\"" +
+         fixed(frame.height, 0) + "\" viewBox=\"0 0 " + fixed(frame.width, 0) + " " + fixed(frame.height, 0) +
+         "\" font-family=\"Helvetica, Arial, sans-serif\" font-size=\"13\">\n";
+  svg += "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+  svg += "<text x=\"" + fixed(frame.width / 2, 1) + "\" y=\"28\" text-anchor=\"middle\" font-size=\"16\">" +
+         escape_xml(title) + "</text>\n";
+  return svg;
+}
+
+std::string svg_axes(const PlotFrame& frame, const std::vector<double>& x_ticks,
+                     const std::vector<double>& y_ticks, const PixelOf& px, const PixelOf& py,
+                     const std::string& x_label, const std::string& y_label) {
+  const double left = frame.left, top = frame.top, plot_w = frame.plot_w(), plot_h = frame.plot_h();
+  std::string svg;
+  const int xd = x_ticks.size() > 1 ? decimals_for(x_ticks[1] - x_ticks[0]) : 1;
+  const int yd = y_ticks.size() > 1 ? decimals_for(y_ticks[1] - y_ticks[0]) : 1;
+  for (double t : x_ticks) {
+    const std::string x = fixed(px(t), 1);
+    svg += "<line x1=\"" + x + "\" y1=\"" + fixed(top, 1) + "\" x2=\"" + x + "\" y2=\"" +
+           fixed(top + plot_h, 1) + "\" stroke=\"#e0e0e0\"/>\n";
+    svg += "<line x1=\"" + x + "\" y1=\"" + fixed(top + plot_h, 1) + "\" x2=\"" + x + "\" y2=\"" +
+           fixed(top + plot_h + 6, 1) + "\" stroke=\"black\"/>\n";
+    svg += "<text x=\"" + x + "\" y=\"" + fixed(top + plot_h + 22, 1) + "\" text-anchor=\"middle\">" +
+           fixed(t, xd) + "</text>\n";
+  }
+  for (double t : y_ticks) {
+    const std::string y = fixed(py(t), 1);
+    svg += "<line x1=\"" + fixed(left, 1) + "\" y1=\"" + y + "\" x2=\"" + fixed(left + plot_w, 1) +
+           "\" y2=\"" + y + "\" stroke=\"#e0e0e0\"/>\n";
+    svg += "<line x1=\"" + fixed(left - 6, 1) + "\" y1=\"" + y + "\" x2=\"" + fixed(left, 1) + "\" y2=\"" +
+           y + "\" stroke=\"black\"/>\n";
+    svg += "<text x=\"" + fixed(left - 10, 1) + "\" y=\"" + fixed(py(t) + 4, 1) + "\" text-anchor=\"end\">" +
+           fixed(t, yd) + "</text>\n";
+  }
+  svg += "<rect x=\"" + fixed(left, 1) + "\" y=\"" + fixed(top, 1) + "\" width=\"" + fixed(plot_w, 1) +
+         "\" height=\"" + fixed(plot_h, 1) + "\" fill=\"none\" stroke=\"black\"/>\n";
+  svg += "<text x=\"" + fixed(left + plot_w / 2, 1) + "\" y=\"" + fixed(frame.height - 20, 1) +
+         "\" text-anchor=\"middle\">" + escape_xml(x_label) + "</text>\n";
+  svg += "<text transform=\"translate(24 " + fixed(top + plot_h / 2, 1) +
+         ") rotate(-90)\" text-anchor=\"middle\">" + escape_xml(y_label) + "</text>\n";
+  return svg;
+}
+
+std::string svg_stroke(const PlotSeries& series) {
+  return "stroke=\"" + series.color + "\" stroke-width=\"2\"" +
+         (series.dash.empty() ? std::string() : " stroke-dasharray=\"" + series.dash + "\"");
+}
+
+std::string svg_legend_entries(double lx, double ly, const std::vector<PlotSeries>& series) {
+  std::string svg;
+  for (std::size_t i = 0; i < series.size(); ++i) {
+    const PlotSeries& s = series[i];
+    const double y = ly + 22.0 * static_cast<double>(i);
+    if (s.line) {
+      svg += "<line x1=\"" + fixed(lx, 1) + "\" y1=\"" + fixed(y, 1) + "\" x2=\"" + fixed(lx + 30, 1) +
+             "\" y2=\"" + fixed(y, 1) + "\" " + svg_stroke(s) + "/>\n";
+    }
+    if (s.markers) {
+      svg += "<circle cx=\"" + fixed(lx + 15, 1) + "\" cy=\"" + fixed(y, 1) + "\" r=\"3\" fill=\"" + s.color +
+             "\"/>\n";
+    }
+    svg += "<text x=\"" + fixed(lx + 40, 1) + "\" y=\"" + fixed(y + 4, 1) + "\">" + escape_xml(s.label) +
+           "</text>\n";
+  }
+  return svg;
+}
+
+}  // namespace cellflow::client

@@ -1,0 +1,62 @@
+// The pieces of the client's SVG plots (curve_output, flow_output): number
+// formatting, XML escaping, nice ticks, the frame with grid, ticks and axis
+// labels, and the legend entries, so every plot is drawn alike.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace cellflow::client {
+
+// `value` with `digits` digits after the decimal point ("%.*f").
+std::string fixed(double value, int digits);
+
+// Digits after the decimal point that show tick step `step` exactly enough.
+int decimals_for(double step);
+
+// `text` with &, <, > and " as XML entities.
+std::string escape_xml(const std::string& text);
+
+// "Nice" tick positions (1, 2, 5 x 10^k steps) covering [lo, hi].
+std::vector<double> nice_ticks(double lo, double hi, int target_count = 6);
+
+// The plot's page and the margins around the plotting area, in SVG pixels.
+struct PlotFrame {
+  double width = 720, height = 480, left = 90, right = 30, top = 50, bottom = 70;
+  double plot_w() const { return width - left - right; }
+  double plot_h() const { return height - top - bottom; }
+};
+
+// A tick value (in axis units) to its SVG pixel coordinate.
+using PixelOf = std::function<double(double)>;
+
+// The XML declaration, the <svg> element, a white background and the title.
+std::string svg_open(const PlotFrame& frame, const std::string& title);
+
+// Grid lines, ticks and tick labels at `x_ticks` and `y_ticks`, the frame
+// around the plotting area and both axis labels.
+std::string svg_axes(const PlotFrame& frame, const std::vector<double>& x_ticks,
+                     const std::vector<double>& y_ticks, const PixelOf& px, const PixelOf& py,
+                     const std::string& x_label, const std::string& y_label);
+
+// One data set of a plot: a polyline and/or markers, with a legend entry.
+struct PlotSeries {
+  std::vector<std::pair<double, double>> points;
+  std::string color;
+  std::string dash;          // stroke-dasharray, "" = solid
+  bool line = true;          // draw the polyline
+  bool markers = false;      // draw a circle per point
+  std::vector<bool> hollow;  // per point (markers only): an open circle
+  std::string label;
+};
+
+// The stroke attributes of a series' line: color, width 2, dashes if any.
+std::string svg_stroke(const PlotSeries& series);
+
+// One legend row per series from (lx, ly) down, 22 px apart: its line
+// sample, marker and label (the box around them is the caller's).
+std::string svg_legend_entries(double lx, double ly, const std::vector<PlotSeries>& series);
+
+}  // namespace cellflow::client

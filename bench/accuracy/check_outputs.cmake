@@ -1,0 +1,52 @@
+# Runs `cellflow-bench accuracy compression --coarse` into OUT and checks that
+# the CSV has its header and one row per run, that the Markdown has the table
+# with rows and the default marked, and that the SVG is an SVG with points.
+# cmake -DEXE=... -DOUT=... -P check_outputs.cmake
+file(REMOVE_RECURSE ${OUT})
+execute_process(COMMAND ${EXE} accuracy compression --coarse --out ${OUT} RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "cellflow-bench exited with ${rc}")
+endif()
+foreach(ext csv md svg)
+  if(NOT EXISTS ${OUT}/compression.${ext})
+    message(FATAL_ERROR "missing ${OUT}/compression.${ext}")
+  endif()
+endforeach()
+
+file(STRINGS ${OUT}/compression.csv csv_lines)
+list(GET csv_lines 0 header)
+if(NOT header MATCHES "^sweep,value,.*wall_s,.*error")
+  message(FATAL_ERROR "unexpected CSV header: ${header}")
+endif()
+# coarse sweep: 3 vertex counts + 2 load points + 2 tolerances + 2 contact stiffnesses
+list(LENGTH csv_lines n)
+if(NOT n EQUAL 10)
+  message(FATAL_ERROR "expected 9 CSV rows, got ${n} lines")
+endif()
+foreach(sweep vertices load_points tolerance contact_stiffness)
+  file(STRINGS ${OUT}/compression.csv sweep_rows REGEX "^${sweep},")
+  list(LENGTH sweep_rows n_sweep)
+  if(n_sweep LESS 2)
+    message(FATAL_ERROR "sweep ${sweep} has ${n_sweep} rows")
+  endif()
+endforeach()
+# every run must have succeeded and have a finite error
+file(STRINGS ${OUT}/compression.csv failed REGEX "FAILED|nan|inf")
+if(failed)
+  message(FATAL_ERROR "failed or non-finite rows: ${failed}")
+endif()
+
+file(STRINGS ${OUT}/compression.md md_rows REGEX "^\\| (vertices|load_points|tolerance|contact_stiffness) \\|")
+list(LENGTH md_rows n_md)
+if(NOT n_md EQUAL 9)
+  message(FATAL_ERROR "expected 9 Markdown rows, got ${n_md}")
+endif()
+file(STRINGS ${OUT}/compression.md md_default REGEX "\\(default\\)")
+if(NOT md_default)
+  message(FATAL_ERROR "the Markdown table does not mark the default")
+endif()
+
+file(READ ${OUT}/compression.svg svg)
+if(NOT svg MATCHES "^<svg" OR NOT svg MATCHES "<circle" OR NOT svg MATCHES "Pareto front")
+  message(FATAL_ERROR "the SVG has no plot")
+endif()

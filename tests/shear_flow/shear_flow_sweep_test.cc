@@ -79,8 +79,8 @@ TEST(ShearFlowSweep, SteadyDeformationAgainstRoscoeAndLargeStretch) {
      << defaults.numerics.target_reynolds_number
      << ", nu 0.48. Roscoe at Ca 0.8 and 1.6 interpolated linearly in the table.\n\n"
      << "| Ca | D | D Roscoe | D / Roscoe - 1 | incl deg | Roscoe deg | tank/gammadot | Roscoe | net strain "
-        "| stop "
-        "| strain | wall s |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|\n";
+        "| thickness / kernel | stop | strain | wall s |\n"
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|\n";
   csv << "ca,taylor_deformation,roscoe_d_lambda1,relative_deviation,inclination_deg,roscoe_theta_deg,"
          "tank_over_gammadot,roscoe_tank_over_gammadot,net_strain,thickness_over_kernel,stop,strain_units,"
          "wall_s\n";

@@ -2,37 +2,16 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include "spec/cell_spec.h"
 #include "spec/shear_flow/shear_flow_spec.h"
 
 namespace cellflow::spec {
 namespace {
 
-// Documented defaults for unset optional fields (see proto/cellflow/v1/*.proto).
-constexpr double kDefaultPoissonRatio = 0.48;
-constexpr double kDefaultMooneyRivlinW = 1.0;
-constexpr int kDefaultTargetVertexCount = 3000;
+// Documented defaults for unset optional fields (see proto/cellflow/v1/*.proto);
+// those of the cell are in spec/cell_spec.h. The cell's default mesh size is
+// scenes::CellParams' own (3000 vertices).
 constexpr int kDefaultLoadPoints = 40;
-
-elastic::Material to_material(const v1::MaterialSpec& m) {
-  elastic::Material material;
-  material.youngs_modulus_pa = m.youngs_modulus_pa();
-  material.poisson_ratio = m.has_poisson_ratio() ? m.poisson_ratio() : kDefaultPoissonRatio;
-  material.mooney_rivlin_w = m.has_mooney_rivlin_w() ? m.mooney_rivlin_w() : kDefaultMooneyRivlinW;
-  return material;
-}
-
-scenes::CellParams to_cell(const v1::CellSpec& c) {
-  scenes::CellParams cell;
-  cell.radius_m = c.radius_m();
-  cell.material = to_material(c.material());
-  if (c.has_nucleus()) {
-    cell.nucleus = scenes::NucleusParams{c.nucleus().radius_m(), to_material(c.nucleus().material())};
-  }
-  cell.target_vertex_count =
-      c.has_target_vertex_count() ? c.target_vertex_count() : kDefaultTargetVertexCount;
-  cell.mesh_file = c.mesh_file();
-  return cell;
-}
 
 scenes::QuasiStaticOptions to_numerics(const v1::QuasiStaticNumerics& n) {
   scenes::QuasiStaticOptions options;  // the struct holds the defaults
@@ -59,7 +38,7 @@ StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec) {
   if (!spec.has_cell()) return missing("compression.cell");
   if (!spec.cell().has_material()) return missing("compression.cell.material");
   scenes::CompressionParams params;
-  params.cell = to_cell(spec.cell());
+  params.cell = to_cell(spec.cell(), scenes::CellParams{});
   params.max_deformation = spec.max_deformation();
   params.load_points = spec.has_load_points() ? spec.load_points() : kDefaultLoadPoints;
   params.numerics = to_numerics(spec.numerics());
@@ -71,7 +50,7 @@ StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
   if (!spec.has_cell()) return missing("indentation.cell");
   if (!spec.cell().has_material()) return missing("indentation.cell.material");
   scenes::IndentationParams params;
-  params.cell = to_cell(spec.cell());
+  params.cell = to_cell(spec.cell(), scenes::CellParams{});
   params.probe_radius_m = spec.probe_radius_m();
   params.max_indentation_m = spec.max_indentation_m();
   params.load_points = spec.has_load_points() ? spec.load_points() : kDefaultLoadPoints;

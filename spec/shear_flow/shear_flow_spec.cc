@@ -2,36 +2,14 @@
 
 #include <string>
 
+#include "spec/cell_spec.h"
+
 namespace cellflow::spec {
 namespace {
 
 // Defaults of unset optional fields that the proto documents.
-constexpr double kDefaultPoissonRatio = 0.48;
-constexpr double kDefaultMooneyRivlinW = 1.0;
 constexpr double kDefaultDensity = 1e3;     // water, kg/m^3 (paper section 7.1)
 constexpr double kDefaultViscosity = 1e-3;  // water, Pa s (paper section 7.1)
-
-elastic::Material to_material(const v1::MaterialSpec& m) {
-  elastic::Material material;
-  material.youngs_modulus_pa = m.youngs_modulus_pa();
-  material.poisson_ratio = m.has_poisson_ratio() ? m.poisson_ratio() : kDefaultPoissonRatio;
-  material.mooney_rivlin_w = m.has_mooney_rivlin_w() ? m.mooney_rivlin_w() : kDefaultMooneyRivlinW;
-  return material;
-}
-
-// CellSpec -> CellParams with the flow's default mesh size (the same mapping
-// as spec/job_spec.cc otherwise).
-scenes::CellParams to_cell(const v1::CellSpec& c) {
-  scenes::CellParams cell = scenes::flow_cell_defaults();
-  cell.radius_m = c.radius_m();
-  cell.material = to_material(c.material());
-  if (c.has_nucleus()) {
-    cell.nucleus = scenes::NucleusParams{c.nucleus().radius_m(), to_material(c.nucleus().material())};
-  }
-  if (c.has_target_vertex_count()) cell.target_vertex_count = c.target_vertex_count();
-  cell.mesh_file = c.mesh_file();
-  return cell;
-}
 
 }  // namespace
 
@@ -40,7 +18,7 @@ StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec, std::
   if (!spec.has_cell()) return invalid_argument(prefix + "cell must be set");
   if (!spec.cell().has_material()) return invalid_argument(prefix + "cell.material must be set");
   scenes::ShearFlowParams params;
-  params.cell = to_cell(spec.cell());
+  params.cell = to_cell(spec.cell(), scenes::flow_cell_defaults());
   if (spec.has_fluid_density_kg_m3()) {
     params.fluid_density_kg_m3 = spec.fluid_density_kg_m3();
   } else {

@@ -60,7 +60,8 @@ std::string event_line(const v1::JobEvent& event) {
               " strain=" + format("%.6g", s.strain()) +
               " taylor_deformation=" + format("%.6g", s.taylor_deformation()) +
               " inclination_rad=" + format("%.6g", s.inclination_rad()) +
-              " net_strain=" + format("%.6g", s.net_strain());
+              " net_strain=" + format("%.6g", s.net_strain()) +
+              " tank_treading_per_s=" + format("%.6g", s.tank_treading_frequency_per_s());
       break;
     }
     case v1::JobEvent::KIND_NOT_SET:

@@ -361,6 +361,7 @@ v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& s) 
   sample.set_inclination_rad(s.inclination_deg * std::numbers::pi / 180.0);
   sample.set_net_strain(s.net_strain);
   sample.set_volume_m3(s.volume_m3);
+  sample.set_tank_treading_frequency_per_s(s.tank_treading_frequency_per_s);
   return sample;
 }
 

@@ -4,9 +4,10 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <map>
+#include <iterator>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "bench/accuracy/accuracy_metrics.h"
 
@@ -59,37 +60,49 @@ std::string xml_escaped(const std::string& s) {
 
 }  // namespace
 
-Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows) {
+Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows, const ReportLabels& labels) {
+  const bool result = !labels.result_csv.empty(), analytic = !labels.analytic_csv.empty();
   std::ostringstream out;
-  out << "sweep,value,numeric_value,default,reference,wall_s,cpu_s,newton_iterations,error,total_error,"
-         "status\n";
+  out << "sweep,value,numeric_value,default,reference,wall_s,cpu_s," << labels.iterations_csv << ','
+      << (result ? labels.result_csv + "," : "") << "error,total_error,"
+      << (analytic ? labels.analytic_csv + "," : "") << "status\n";
   for (const auto& r : rows) {
     out << r.sweep << ',' << csv_quoted(r.value) << ',' << format("%.6g", r.numeric_value) << ','
         << (r.is_default ? 1 : 0) << ',' << (r.is_reference ? 1 : 0) << ',' << format("%.3f", r.wall_s) << ','
-        << format("%.3f", r.cpu_s) << ',' << r.newton_iterations << ',' << format("%.6e", r.error) << ','
-        << format("%.6e", r.total_error) << ',' << csv_quoted(r.status) << '\n';
+        << format("%.3f", r.cpu_s) << ',' << r.iterations << ',';
+    if (result) out << format("%.6e", r.result) << ',';
+    out << format("%.6e", r.error) << ',' << format("%.6e", r.total_error) << ',';
+    if (analytic) out << format("%.6e", r.analytic_error) << ',';
+    out << csv_quoted(r.status) << '\n';
   }
   return write_text(path, out.str());
 }
 
 Status write_markdown(const std::string& path, const std::string& heading,
-                      const std::vector<AccuracyRow>& rows) {
+                      const std::vector<AccuracyRow>& rows, const ReportLabels& labels) {
+  const bool result = !labels.result_md.empty(), analytic = !labels.analytic_md.empty();
   std::ostringstream out;
   out << heading << "\n\n";
-  out << "| setting | value | wall time [s] | error | total error | Newton its | status |\n";
-  out << "|---|---|---|---|---|---|---|\n";
+  out << "| setting | value | wall time [s] | " << (result ? labels.result_md + " | " : "")
+      << "error | total error | " << (analytic ? labels.analytic_md + " | " : "") << labels.iterations_md
+      << " | status |\n";
+  out << "|---|---|---|" << (result ? "---|" : "") << "---|---|" << (analytic ? "---|" : "") << "---|---|\n";
   for (const auto& r : rows) {
     std::string value = r.value;
     if (r.is_default) value += " **(default)**";
     if (r.is_reference) value += " (reference)";
-    out << "| " << r.sweep << " | " << value << " | " << format("%.2f", r.wall_s) << " | "
-        << (r.is_reference && r.error == 0.0 ? "0 (reference)" : error_text(r.error)) << " | "
-        << error_text(r.total_error) << " | " << r.newton_iterations << " | " << r.status << " |\n";
+    out << "| " << r.sweep << " | " << value << " | " << format("%.2f", r.wall_s) << " | ";
+    if (result) out << (std::isfinite(r.result) ? format("%.5g", r.result) : "n/a") << " | ";
+    out << (r.is_reference && r.error == 0.0 ? "0 (reference)" : error_text(r.error)) << " | "
+        << error_text(r.total_error) << " | ";
+    if (analytic) out << error_text(r.analytic_error) << " | ";
+    out << r.iterations << " | " << r.status << " |\n";
   }
   return write_text(path, out.str());
 }
 
-Status write_svg(const std::string& path, const std::string& title, const std::vector<AccuracyRow>& rows) {
+Status write_svg(const std::string& path, const std::string& title, const std::vector<AccuracyRow>& rows,
+                 const ReportLabels& labels) {
   // one point per run
   std::vector<const AccuracyRow*> points;
   std::set<std::string> seen;
@@ -122,13 +135,19 @@ Status write_svg(const std::string& path, const std::string& title, const std::v
   const auto x_of = [&](double t) { return kLeft + (std::log10(t) - t_lo) / (t_hi - t_lo) * plot_w; };
   const auto y_of = [&](double e) { return kTop + (e_hi - std::log10(e)) / (e_hi - e_lo) * plot_h; };
 
-  const std::map<std::string, std::string> colours = {{"vertices", "#1f77b4"},
-                                                      {"load_points", "#ff7f0e"},
-                                                      {"tolerance", "#2ca02c"},
-                                                      {"contact_stiffness", "#d62728"}};
+  // one colour per sweep, in the order the sweeps first appear
+  static constexpr const char* kPalette[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
+                                             "#9467bd", "#8c564b", "#e377c2"};
+  std::vector<std::pair<std::string, std::string>> colours;
+  for (const auto& r : rows) {
+    const bool known =
+        std::any_of(colours.begin(), colours.end(), [&](const auto& c) { return c.first == r.sweep; });
+    if (!known) colours.emplace_back(r.sweep, kPalette[colours.size() % std::size(kPalette)]);
+  }
   const auto colour_of = [&](const std::string& sweep) {
-    const auto it = colours.find(sweep);
-    return it == colours.end() ? std::string("#7f7f7f") : it->second;
+    for (const auto& [name, colour] : colours)
+      if (name == sweep) return colour;
+    return std::string("#7f7f7f");
   };
 
   std::ostringstream s;
@@ -155,7 +174,7 @@ Status write_svg(const std::string& path, const std::string& title, const std::v
   s << "<text x=\"" << kLeft + plot_w / 2 << "\" y=\"" << kHeight - 25
     << "\" text-anchor=\"middle\">wall time [s]</text>\n";
   s << "<text x=\"20\" y=\"" << kTop + plot_h / 2 << "\" text-anchor=\"middle\" transform=\"rotate(-90 20 "
-    << kTop + plot_h / 2 << ")\">largest relative force error</text>\n";
+    << kTop + plot_h / 2 << ")\">" << xml_escaped(labels.error_axis) << "</text>\n";
 
   // Pareto front: its points in order of time
   std::vector<std::size_t> on_front;

@@ -3,6 +3,7 @@
 // (log-log) with the Pareto front and the default setting marked.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -18,23 +19,40 @@ struct AccuracyRow {
   bool is_reference = false;  // the reference of its sweep (error 0 by definition)
   double wall_s = 0.0;
   double cpu_s = 0.0;
-  int newton_iterations = 0;
-  double error = 0.0;         // largest relative force error against the sweep's reference
-  double total_error = 0.0;   // the same against the vertex sweep's (extrapolated) reference
+  long long iterations = 0;  // Newton iterations (quasi-static) or time steps (flow)
+  double error = 0.0;        // largest relative error against the sweep's reference
+  double total_error = 0.0;  // the same against the scene's (extrapolated) reference
+  // Optional: the run's result (e.g. the steady D) and its relative error
+  // against an analytic value; NaN where the scene has none.
+  double result = std::numeric_limits<double>::quiet_NaN();
+  double analytic_error = std::numeric_limits<double>::quiet_NaN();
   std::string status = "ok";  // or the failure the scene reported
   std::string run_key;        // one run shared by several sweeps (the default) has one key
 };
 
-Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows);
+// What the columns of a scene's table are called. The result and analytic
+// columns are written only when named.
+struct ReportLabels {
+  std::string iterations_csv = "newton_iterations";
+  std::string iterations_md = "Newton its";
+  std::string result_csv, result_md;                        // e.g. "steady_D", "steady D"
+  std::string analytic_csv, analytic_md;                    // e.g. "error_small_ca", "error vs 5/4 Ca"
+  std::string error_axis = "largest relative force error";  // y axis of the plot
+};
+
+Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows,
+                 const ReportLabels& labels = {});
 
 // A Markdown document: `heading` (already Markdown) then the table.
 Status write_markdown(const std::string& path, const std::string& heading,
-                      const std::vector<AccuracyRow>& rows);
+                      const std::vector<AccuracyRow>& rows, const ReportLabels& labels = {});
 
-// Plots total_error against wall_s, one colour per sweep, each run once (by
-// run_key); rows with no positive finite error (the reference itself, a
-// failed run) are left out. The Pareto front over the plotted runs is a line
-// through its points; the default is ringed.
-Status write_svg(const std::string& path, const std::string& title, const std::vector<AccuracyRow>& rows);
+// Plots total_error against wall_s, one colour per sweep (in the order the
+// sweeps first appear), each run once (by run_key); rows with no positive
+// finite error (the reference itself, a failed run) are left out. The Pareto
+// front over the plotted runs is a line through its points; the default is
+// ringed.
+Status write_svg(const std::string& path, const std::string& title, const std::vector<AccuracyRow>& rows,
+                 const ReportLabels& labels = {});
 
 }  // namespace cellflow::bench

@@ -1,15 +1,18 @@
 // cellflow-bench: benchmarks of run time against error (issue 5).
 //
 //   cellflow-bench accuracy compression [--out DIR] [--coarse] [--threads 1]
+//   cellflow-bench accuracy shear_flow  [--out DIR] [--coarse] [--threads 1]
 //
 // Sweeps the settings that trade time for accuracy of a scene and writes
-// SCENE.csv, SCENE.md and SCENE.svg to DIR (see compression_accuracy.h).
+// SCENE.csv, SCENE.md and SCENE.svg to DIR (see compression_accuracy.h and
+// shear_flow_accuracy.h).
 // --coarse runs a tiny sweep in seconds (CI keeps the harness from rotting).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <string>
 
 #include "bench/accuracy/compression_accuracy.h"
+#include "bench/accuracy/shear_flow_accuracy.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"cellflow benchmarks of run time against error"};
@@ -18,23 +21,32 @@ int main(int argc, char** argv) {
   accuracy->require_subcommand(1);
   CLI::App* compression = accuracy->add_subcommand(
       "compression", "vertex count, load points, tolerance, contact stiffness of the compression scene");
+  CLI::App* shear_flow = accuracy->add_subcommand(
+      "shear_flow", "lattice resolution, vertex count, IBM kernel, float/double of the shear-flow scene");
   std::string out_dir = "accuracy-out";
   bool coarse = false;
   int threads = 1;
-  compression->add_option("--out", out_dir, "output folder (created if missing)");
-  compression->add_flag("--coarse", coarse, "tiny sweep for CI (seconds)");
-  compression->add_option("--threads", threads, "OpenMP threads of each run (timings in the docs use 1)")
-      ->check(CLI::Range(1, 1024));
+  for (CLI::App* scene : {compression, shear_flow}) {
+    scene->add_option("--out", out_dir, "output folder (created if missing)");
+    scene->add_flag("--coarse", coarse, "tiny sweep for CI (seconds)");
+    scene->add_option("--threads", threads, "OpenMP threads of each run (timings in the docs use 1)")
+        ->check(CLI::Range(1, 1024));
+  }
   CLI11_PARSE(app, argc, argv);
 
+  cellflow::Status status;
   if (compression->parsed()) {
     cellflow::bench::CompressionSweep sweep = cellflow::bench::compression_sweep(coarse);
     sweep.threads = threads;
-    const cellflow::Status status = cellflow::bench::run_compression_accuracy(sweep, out_dir, coarse);
-    if (!status.ok()) {
-      std::fprintf(stderr, "cellflow-bench: %s\n", status.to_string().c_str());
-      return 1;
-    }
+    status = cellflow::bench::run_compression_accuracy(sweep, out_dir, coarse);
+  } else if (shear_flow->parsed()) {
+    cellflow::bench::ShearFlowSweep sweep = cellflow::bench::shear_flow_sweep(coarse);
+    sweep.threads = threads;
+    status = cellflow::bench::run_shear_flow_accuracy(sweep, out_dir, coarse);
+  }
+  if (!status.ok()) {
+    std::fprintf(stderr, "cellflow-bench: %s\n", status.to_string().c_str());
+    return 1;
   }
   return 0;
 }

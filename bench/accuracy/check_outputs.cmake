@@ -1,52 +1,56 @@
-# Runs `cellflow-bench accuracy compression --coarse` into OUT and checks that
-# the CSV has its header and one row per run, that the Markdown has the table
-# with rows and the default marked, and that the SVG is an SVG with points.
-# cmake -DEXE=... -DOUT=... -P check_outputs.cmake
+# Runs `cellflow-bench accuracy SCENE --coarse` into OUT and checks that the
+# CSV has its header and ROWS rows with every sweep of SWEEPS present at least
+# twice and no failed or non-finite row, that the Markdown has the table with
+# ROWS rows and the default marked, and that the SVG is an SVG with points.
+# cmake -DEXE=... -DSCENE=compression -DOUT=... -DROWS=9
+#       -DSWEEPS=vertices,load_points,tolerance,contact_stiffness -P check_outputs.cmake
+string(REPLACE "," ";" SWEEPS "${SWEEPS}")
 file(REMOVE_RECURSE ${OUT})
-execute_process(COMMAND ${EXE} accuracy compression --coarse --out ${OUT} RESULT_VARIABLE rc)
+execute_process(COMMAND ${EXE} accuracy ${SCENE} --coarse --out ${OUT} RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "cellflow-bench exited with ${rc}")
 endif()
 foreach(ext csv md svg)
-  if(NOT EXISTS ${OUT}/compression.${ext})
-    message(FATAL_ERROR "missing ${OUT}/compression.${ext}")
+  if(NOT EXISTS ${OUT}/${SCENE}.${ext})
+    message(FATAL_ERROR "missing ${OUT}/${SCENE}.${ext}")
   endif()
 endforeach()
 
-file(STRINGS ${OUT}/compression.csv csv_lines)
+file(STRINGS ${OUT}/${SCENE}.csv csv_lines)
 list(GET csv_lines 0 header)
 if(NOT header MATCHES "^sweep,value,.*wall_s,.*error")
   message(FATAL_ERROR "unexpected CSV header: ${header}")
 endif()
-# coarse sweep: 3 vertex counts + 2 load points + 2 tolerances + 2 contact stiffnesses
 list(LENGTH csv_lines n)
-if(NOT n EQUAL 10)
-  message(FATAL_ERROR "expected 9 CSV rows, got ${n} lines")
+math(EXPR expected_lines "${ROWS} + 1")
+if(NOT n EQUAL expected_lines)
+  message(FATAL_ERROR "expected ${ROWS} CSV rows, got ${n} lines")
 endif()
-foreach(sweep vertices load_points tolerance contact_stiffness)
-  file(STRINGS ${OUT}/compression.csv sweep_rows REGEX "^${sweep},")
+string(REPLACE ";" "|" sweep_alternatives "${SWEEPS}")
+foreach(sweep ${SWEEPS})
+  file(STRINGS ${OUT}/${SCENE}.csv sweep_rows REGEX "^${sweep},")
   list(LENGTH sweep_rows n_sweep)
   if(n_sweep LESS 2)
     message(FATAL_ERROR "sweep ${sweep} has ${n_sweep} rows")
   endif()
 endforeach()
-# every run must have succeeded and have a finite error
-file(STRINGS ${OUT}/compression.csv failed REGEX "FAILED|nan|inf")
+# every run must have succeeded and have finite errors
+file(STRINGS ${OUT}/${SCENE}.csv failed REGEX "FAILED|nan|inf")
 if(failed)
   message(FATAL_ERROR "failed or non-finite rows: ${failed}")
 endif()
 
-file(STRINGS ${OUT}/compression.md md_rows REGEX "^\\| (vertices|load_points|tolerance|contact_stiffness) \\|")
+file(STRINGS ${OUT}/${SCENE}.md md_rows REGEX "^\\| (${sweep_alternatives}) \\|")
 list(LENGTH md_rows n_md)
-if(NOT n_md EQUAL 9)
-  message(FATAL_ERROR "expected 9 Markdown rows, got ${n_md}")
+if(NOT n_md EQUAL ROWS)
+  message(FATAL_ERROR "expected ${ROWS} Markdown rows, got ${n_md}")
 endif()
-file(STRINGS ${OUT}/compression.md md_default REGEX "\\(default\\)")
+file(STRINGS ${OUT}/${SCENE}.md md_default REGEX "\\(default\\)")
 if(NOT md_default)
   message(FATAL_ERROR "the Markdown table does not mark the default")
 endif()
 
-file(READ ${OUT}/compression.svg svg)
+file(READ ${OUT}/${SCENE}.svg svg)
 if(NOT svg MATCHES "^<svg" OR NOT svg MATCHES "<circle" OR NOT svg MATCHES "Pareto front")
   message(FATAL_ERROR "the SVG has no plot")
 endif()

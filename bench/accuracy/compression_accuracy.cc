@@ -224,7 +224,7 @@ Status run_compression_accuracy(const CompressionSweep& sweep, const std::string
     row.is_reference = is_reference;
     row.wall_s = r.wall_s;
     row.cpu_s = r.cpu_s;
-    row.newton_iterations = r.newton;
+    row.iterations = r.newton;
     row.error = max_relative_error(r.grid_forces, reference);
     row.total_error = max_relative_error(r.grid_forces, mesh_reference);
     row.status = r.status;

@@ -104,6 +104,10 @@ TEST_F(ServiceTest, ShearFlowJobStreamsSamplesAndWritesTrajectoryAndFlow) {
     EXPECT_LE(relative_difference(samples[i].taylor_deformation(), r.taylor_deformation), 1e-12) << i;
     EXPECT_LE(relative_difference(samples[i].strain(), r.strain_units), 1e-12) << i;
     EXPECT_LE(relative_difference(samples[i].net_strain(), r.net_strain), 1e-12) << i;
+    EXPECT_LE(
+        relative_difference(samples[i].tank_treading_frequency_per_s(), r.tank_treading_frequency_per_s),
+        1e-12)
+        << i;
   }
   std::printf("tiny flow job: submit -> SUCCEEDED through the service %.3f s, the scene in-process %.3f s\n",
               service_s, direct_s);

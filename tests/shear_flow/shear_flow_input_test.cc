@@ -170,6 +170,18 @@ TEST(ShearFlowRun, RefusesACellTooStiffForTheExplicitUpdate) {
   EXPECT_NE(r.status.message().find("shear_flow.numerics.cells_per_radius"), std::string::npos);
   EXPECT_GT(r.stiffness_ratio, default_stiffness_limit(ibm::Kernel::kPeskin4));
   EXPECT_TRUE(r.samples.empty());
+  // peskin4 is already in use: the message does not offer it as a remedy
+  EXPECT_EQ(r.status.message().find("ibm_kernel"), std::string::npos) << r.status.message();
+}
+
+TEST(ShearFlowRun, RefusalOffersTheWidestKernelWhenANarrowerOneIsInUse) {
+  ShearFlowParams p = base_params();
+  p.numerics.ibm_kernel = ibm::Kernel::kTrilinear;
+  p.capillary_number = 0.05;  // stiffness ratio ~0.24 at 4 cells per radius, trilinear's limit 0.05
+  const ShearFlowResult r = run_shear_flow(p);
+  EXPECT_EQ(r.status.code(), StatusCode::kInvalidArgument) << r.status.to_string();
+  EXPECT_NE(r.status.message().find("shear_flow.numerics.ibm_kernel = peskin4"), std::string::npos)
+      << r.status.message();
 }
 
 // Forcing the explicit update past its stability limit (ratio 8.2 at

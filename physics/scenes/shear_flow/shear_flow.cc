@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <string>
 #include <utility>
@@ -41,11 +40,6 @@ bool positive_finite(double v) {
   return v > 0.0 && std::isfinite(v);
 }
 
-// A read mesh must describe a cell of about the stated radius (as
-// scenes::build_cell_mesh, which this target cannot link: it lives in
-// cellflow::scenes together with contact and solver).
-constexpr double kMeshRadiusMismatch = 1.25;
-
 // Elastic energy above this multiple of mu V0 is a blow-up: the paper's
 // largest deformation (strain 1.8 at Ca = 2) stores about 3 mu V0.
 constexpr double kEnergyBlowUp = 100.0;
@@ -62,69 +56,6 @@ constexpr double kTankTreadBand = 0.7;
 // Vertex count from which the coupling kernels use OpenMP threads (3000
 // vertices: elastic forces 0.56 ms serial, 0.37 ms on two free cores).
 constexpr std::size_t kParallelVertices = 2000;
-
-Status validate_cell(const CellParams& cell, const std::string& prefix) {
-  std::string message;
-  if (!positive_finite(cell.radius_m)) {
-    add_violation(message, prefix + "radius_m = " + num(cell.radius_m) + " must be > 0 and finite");
-  }
-  if (Status s = elastic::validate(cell.material, prefix + "material."); !s.ok())
-    add_violation(message, s.message());
-  if (cell.nucleus) {
-    const double rn = cell.nucleus->radius_m;
-    if (!(rn > 0.0 && rn < cell.radius_m)) {
-      add_violation(message, prefix + "nucleus.radius_m = " + num(rn) + " must lie in (0, radius_m) = (0, " +
-                                 num(cell.radius_m) + ")");
-    }
-    if (Status s = elastic::validate(cell.nucleus->material, prefix + "nucleus.material."); !s.ok()) {
-      add_violation(message, s.message());
-    }
-  }
-  if (cell.mesh_file.empty()) {
-    if (cell.target_vertex_count < 200 || cell.target_vertex_count > 20000) {
-      add_violation(message, prefix + "target_vertex_count = " + std::to_string(cell.target_vertex_count) +
-                                 " must lie in [200, 20000]");
-    }
-  } else if (!std::ifstream(cell.mesh_file).good()) {
-    add_violation(message, prefix + "mesh_file = '" + cell.mesh_file + "' cannot be opened for reading");
-  }
-  if (message.empty()) return Status::ok_status();
-  return invalid_argument(std::move(message));
-}
-
-StatusOr<mesh::TetMesh> build_flow_cell_mesh(const CellParams& cell, const std::string& prefix) {
-  if (cell.mesh_file.empty()) {
-    mesh::SphereMeshOptions options;
-    options.radius_m = cell.radius_m;
-    options.target_vertex_count = cell.target_vertex_count;
-    if (cell.nucleus) options.nucleus_radius_m = cell.nucleus->radius_m;
-    StatusOr<mesh::TetMesh> made = mesh::make_sphere_mesh(options);
-    if (!made.ok()) {
-      return Status(made.status().code(),
-                    prefix + "target_vertex_count: sphere meshing failed: " + made.status().message());
-    }
-    return made;
-  }
-  const std::string field = prefix + "mesh_file '" + cell.mesh_file + "'";
-  StatusOr<mesh::TetMesh> read = mesh::read_gmsh_msh(cell.mesh_file, 1.0);
-  if (!read.ok()) return Status(read.status().code(), field + ": " + read.status().message());
-  const mesh::MeshQuality quality = mesh::mesh_quality(*read);
-  // radius of the sphere with the mesh's volume: (3 V / (4 pi))^(1/3)
-  const double equivalent_radius = std::cbrt(3.0 * quality.volume_m3 / (4.0 * kPi));
-  if (!(equivalent_radius < kMeshRadiusMismatch * cell.radius_m &&
-        equivalent_radius > cell.radius_m / kMeshRadiusMismatch)) {
-    return invalid_argument(field + ": the mesh's volume-equivalent radius " + num(equivalent_radius) +
-                            " m does not match " + prefix + "radius_m = " + num(cell.radius_m) +
-                            " m within a factor " + num(kMeshRadiusMismatch) +
-                            " (file coordinates are read in metres)");
-  }
-  bool has_nucleus = false;
-  for (const mesh::Region r : read->tet_region) has_nucleus = has_nucleus || r == mesh::Region::kNucleus;
-  if (cell.nucleus && !has_nucleus) {
-    return invalid_argument(prefix + "nucleus is set but " + field + " marks no nucleus tetrahedra");
-  }
-  return read;
-}
 
 // Smallest box (in radii) that holds the cell and the support of its
 // immersed-boundary kernel: periodic directions need the cell and its image
@@ -609,7 +540,7 @@ Status validate(const ShearFlowParams& params, std::string_view field_prefix) {
   const std::string prefix(field_prefix);
   const std::string np = prefix + "numerics.";
   std::string message;
-  if (Status s = validate_cell(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
+  if (Status s = validate(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
   if (!positive_finite(params.fluid_density_kg_m3)) {
     add_violation(message, prefix + "fluid_density_kg_m3 = " + num(params.fluid_density_kg_m3) +
                                " must be > 0 and finite");
@@ -729,7 +660,7 @@ ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCal
   const double radius = params.cell.radius_m;
 
   // The cell: mesh centred on its volume centroid, and its elastic body.
-  StatusOr<mesh::TetMesh> made = build_flow_cell_mesh(params.cell, prefix + "cell.");
+  StatusOr<mesh::TetMesh> made = build_cell_mesh(params.cell, prefix + "cell.");
   if (!made.ok()) {
     result.status = made.status();
     return result;
@@ -786,8 +717,10 @@ ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCal
           "). The ratio scales as dt / (eta / mu): lower " + prefix +
           "numerics.target_reynolds_number (now " + num(n.target_reynolds_number) + ") or " + prefix +
           "numerics.relaxation_time (now " + num(n.relaxation_time) + "), raise " + prefix +
-          "numerics.cells_per_radius (now " + num(n.cells_per_radius) + "), or use " + prefix +
-          "numerics.ibm_kernel = peskin4 (the most stable)");
+          "numerics.cells_per_radius (now " + num(n.cells_per_radius) + ")" +
+          (n.ibm_kernel == ibm::Kernel::kPeskin4
+               ? std::string()
+               : ", or use " + prefix + "numerics.ibm_kernel = peskin4 (the most stable)"));
       return result;
     }
   }

@@ -1,0 +1,329 @@
+#include "bench/accuracy/shear_flow_accuracy.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <tuple>
+
+#include "bench/accuracy/accuracy_metrics.h"
+#include "bench/accuracy/accuracy_report.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
+
+namespace cellflow::bench {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// One point of the sweep space.
+struct Setting {
+  double cells_per_radius = 0.0;
+  int vertices = 0;
+  ibm::Kernel kernel = ibm::Kernel::kPeskin4;
+  bool single_precision = true;
+  auto tie() const { return std::tie(cells_per_radius, vertices, kernel, single_precision); }
+  bool operator<(const Setting& o) const { return tie() < o.tie(); }
+  bool operator==(const Setting& o) const { return tie() == o.tie(); }
+  std::string key() const {
+    std::ostringstream s;
+    s << cells_per_radius << " cells/R, " << vertices << " vertices, " << ibm::kernel_name(kernel) << ", "
+      << (single_precision ? "float" : "double");
+    return s.str();
+  }
+};
+
+struct Run {
+  bool ok = false;
+  std::string status = "ok";
+  double wall_s = 0.0, cpu_s = 0.0;
+  long long time_steps = 0;
+  double taylor_deformation = kNaN;
+  double inclination_deg = kNaN;
+  double tank_treading_over_shear_rate = kNaN;
+  double final_strain = 0.0;
+  std::string stop;
+  int actual_vertices = 0;
+};
+
+// The bench cell of bench/shear_flow and the validation tests: R = 6 um,
+// E = 10 Pa, nu = 0.48, in water; Ca sets the shear rate.
+scenes::ShearFlowParams bench_params(const ShearFlowSweep& sweep, const Setting& s) {
+  scenes::ShearFlowParams p;
+  p.cell.radius_m = 6e-6;
+  p.cell.material.youngs_modulus_pa = 10.0;
+  p.cell.material.poisson_ratio = 0.48;
+  p.cell.target_vertex_count = s.vertices;
+  p.capillary_number = sweep.capillary_number;
+  scenes::ShearFlowNumerics& n = p.numerics;
+  n.cells_per_radius = s.cells_per_radius;
+  n.ibm_kernel = s.kernel;
+  n.single_precision = s.single_precision;
+  n.steady_tolerance = sweep.steady_tolerance;
+  n.steady_window_strain = sweep.steady_window_strain;
+  n.max_strain = sweep.max_strain;
+  n.threads = sweep.threads;
+  return p;
+}
+
+class Runner {
+ public:
+  explicit Runner(const ShearFlowSweep& sweep) : sweep_(sweep) {}
+
+  const Run& run(const Setting& s) {
+    auto it = runs_.find(s);
+    if (it != runs_.end()) return it->second;
+    std::fprintf(stderr, "run %s ... ", s.key().c_str());
+    std::fflush(stderr);
+    Run r;
+    const std::clock_t cpu_start = std::clock();
+    const scenes::ShearFlowResult result = scenes::run_shear_flow(bench_params(sweep_, s));
+    r.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
+    r.wall_s = result.wall_time_s;
+    r.ok = result.status.ok();
+    r.stop = std::string(scenes::stop_name(result.stop));
+    if (!r.ok) r.status = "FAILED: " + result.status.to_string();
+    r.time_steps = static_cast<long long>(result.time_steps);
+    if (!result.samples.empty()) r.final_strain = result.samples.back().strain_units;
+    if (r.ok) {
+      r.taylor_deformation = result.steady_taylor_deformation;
+      r.inclination_deg = result.steady_inclination_deg;
+      r.tank_treading_over_shear_rate = result.tank_treading_frequency_per_s / result.setup.shear_rate_per_s;
+    }
+    std::fprintf(stderr, "%.1f s wall, D %.5f, stop %s at strain %.2f, %s\n", r.wall_s, r.taylor_deformation,
+                 r.stop.c_str(), r.final_strain, r.status.c_str());
+    return runs_.emplace(s, std::move(r)).first->second;
+  }
+
+  const std::map<Setting, Run>& runs() const { return runs_; }
+
+ private:
+  const ShearFlowSweep& sweep_;
+  std::map<Setting, Run> runs_;
+};
+
+double relative_error(double value, double reference) {
+  if (!std::isfinite(value) || !std::isfinite(reference) || reference == 0.0) return kNaN;
+  return std::abs(value / reference - 1.0);
+}
+
+std::string number_text(double x, const char* fmt) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, fmt, x);
+  return buffer;
+}
+
+}  // namespace
+
+ShearFlowSweep shear_flow_sweep(bool coarse) {
+  const scenes::ShearFlowNumerics defaults;
+  ShearFlowSweep s;
+  s.default_cells_per_radius = defaults.cells_per_radius;
+  s.default_vertices = scenes::kFlowDefaultVertexCount;
+  s.default_kernel = defaults.ibm_kernel;
+  s.default_single_precision = defaults.single_precision;
+  s.steady_tolerance = defaults.steady_tolerance;
+  s.steady_window_strain = defaults.steady_window_strain;
+  s.max_strain = defaults.max_strain;
+  s.kernels = {ibm::Kernel::kTrilinear, ibm::Kernel::kPeskin3, ibm::Kernel::kPeskin4};
+  s.single_precision = {true, false};
+  if (coarse) {
+    // Seconds: a small mesh on coarse lattices, one strain unit at most.
+    s.cells_per_radius = {3.0, 4.0, 5.0};
+    s.vertex_counts = {300, 600};
+    // trilinear is refused at this time step (stiffness limit 0.05): peskin3 instead
+    s.kernels = {ibm::Kernel::kPeskin3, ibm::Kernel::kPeskin4};
+    s.default_cells_per_radius = 4.0;
+    s.default_vertices = 300;
+    s.steady_window_strain = 0.5;
+    s.max_strain = 1.0;
+  } else {
+    s.cells_per_radius = {4.0, 6.0, 8.0, 10.0, 12.0};
+    s.vertex_counts = {1000, 3000, 8000};
+  }
+  return s;
+}
+
+Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& out_dir, bool coarse) {
+  if (sweep.cells_per_radius.size() < 3)
+    return Status(StatusCode::kInvalidArgument, "the resolution sweep needs at least three lattices");
+  if (sweep.vertex_counts.empty() || sweep.kernels.empty() || sweep.single_precision.empty())
+    return Status(StatusCode::kInvalidArgument, "every sweep needs at least one value");
+  const auto wall_start = std::chrono::steady_clock::now();
+  Runner runner(sweep);
+  const Setting base{sweep.default_cells_per_radius, sweep.default_vertices, sweep.default_kernel,
+                     sweep.default_single_precision};
+  const double small_ca_d = scenes::small_ca_taylor_deformation(sweep.capillary_number);
+
+  // Resolution sweep and its reference: Richardson in dx / R = 1 / cpr from
+  // the three finest lattices.
+  std::vector<Setting> lattice_settings;
+  for (double cpr : sweep.cells_per_radius) {
+    Setting s = base;
+    s.cells_per_radius = cpr;
+    lattice_settings.push_back(s);
+    runner.run(s);
+  }
+  const std::size_t nl = lattice_settings.size();
+  const Run& d1 = runner.run(lattice_settings[nl - 1]);
+  const Run& d2 = runner.run(lattice_settings[nl - 2]);
+  const Run& d3 = runner.run(lattice_settings[nl - 3]);
+  if (!d1.ok)
+    return Status(StatusCode::kNumericalFailure,
+                  "the finest lattice (" + lattice_settings[nl - 1].key() + ") failed: " + d1.status);
+  double reference_d = d1.taylor_deformation;
+  std::string reference_note;
+  Richardson rich;
+  if (d2.ok && d3.ok) {
+    const double f1[1] = {d1.taylor_deformation}, f2[1] = {d2.taylor_deformation},
+                 f3[1] = {d3.taylor_deformation};
+    rich = richardson_extrapolate(1.0 / sweep.cells_per_radius[nl - 1], 1.0 / sweep.cells_per_radius[nl - 2],
+                                  1.0 / sweep.cells_per_radius[nl - 3], f1, f2, f3);
+    reference_d = rich.extrapolated[0];
+    char buffer[256];
+    std::snprintf(
+        buffer, sizeof buffer,
+        "observed order p = %.3f (difference ratio S = %.4f; nan: no p in (0, 20] fits) from %g, %g "
+        "and %g cells per radius; ",
+        rich.order, rich.difference_ratio, sweep.cells_per_radius[nl - 3], sweep.cells_per_radius[nl - 2],
+        sweep.cells_per_radius[nl - 1]);
+    reference_note = buffer;
+    reference_note += rich.usable
+                          ? "p is in (0.5, 4): the reference is the Richardson extrapolation."
+                          : "p is NOT in (0.5, 4): the reference is the finest lattice, not extrapolated.";
+  } else {
+    reference_note =
+        "one of the three finest lattices failed: the reference is the finest lattice, not extrapolated.";
+  }
+
+  std::vector<AccuracyRow> rows;
+  const auto add_row = [&](const std::string& sweep_name, const Setting& s, const std::string& value,
+                           double numeric, double sweep_reference_d, bool is_reference) {
+    const Run& r = runner.run(s);
+    AccuracyRow row;
+    row.sweep = sweep_name;
+    row.value = value;
+    row.numeric_value = numeric;
+    row.is_default = s == base;
+    row.is_reference = is_reference;
+    row.wall_s = r.wall_s;
+    row.cpu_s = r.cpu_s;
+    row.iterations = r.time_steps;
+    row.result = r.taylor_deformation;
+    row.error = relative_error(r.taylor_deformation, sweep_reference_d);
+    row.total_error = relative_error(r.taylor_deformation, reference_d);
+    row.analytic_error = relative_error(r.taylor_deformation, small_ca_d);
+    row.status = r.ok ? r.stop + " at strain " + number_text(r.final_strain, "%.1f") : r.status;
+    row.run_key = s.key();
+    rows.push_back(row);
+  };
+
+  for (std::size_t i = 0; i < nl; ++i)
+    add_row("cells_per_radius", lattice_settings[i], number_text(sweep.cells_per_radius[i], "%g"),
+            sweep.cells_per_radius[i], rich.usable ? reference_d : d1.taylor_deformation,
+            !rich.usable && i + 1 == nl);
+  const auto one_factor = [&](const std::string& name, std::size_t count, auto&& setting_of, auto&& value_of,
+                              auto&& numeric_of) {
+    const Run& ref = runner.run(setting_of(count - 1));
+    for (std::size_t i = 0; i < count; ++i) {
+      const Setting s = setting_of(i);
+      runner.run(s);
+      add_row(name, s, value_of(i), numeric_of(i), ref.taylor_deformation, i + 1 == count);
+    }
+  };
+  one_factor(
+      "vertices", sweep.vertex_counts.size(),
+      [&](std::size_t i) {
+        Setting s = base;
+        s.vertices = sweep.vertex_counts[i];
+        return s;
+      },
+      [&](std::size_t i) { return std::to_string(sweep.vertex_counts[i]); },
+      [&](std::size_t i) { return static_cast<double>(sweep.vertex_counts[i]); });
+  one_factor(
+      "kernel", sweep.kernels.size(),
+      [&](std::size_t i) {
+        Setting s = base;
+        s.kernel = sweep.kernels[i];
+        return s;
+      },
+      [&](std::size_t i) { return std::string(ibm::kernel_name(sweep.kernels[i])); },
+      [&](std::size_t i) { return ibm::kernel_width(sweep.kernels[i]); });
+  one_factor(
+      "precision", sweep.single_precision.size(),
+      [&](std::size_t i) {
+        Setting s = base;
+        s.single_precision = sweep.single_precision[i];
+        return s;
+      },
+      [&](std::size_t i) { return std::string(sweep.single_precision[i] ? "float" : "double"); },
+      [&](std::size_t i) { return sweep.single_precision[i] ? 4.0 : 8.0; });
+
+  const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  const Run& default_run = runner.run(base);
+
+  std::ostringstream md;
+  md << "# Shear flow: run time against the error of the steady Taylor deformation"
+     << (coarse ? " (coarse CI size)" : "") << "\n\n";
+  md << "Generated by `cellflow-bench accuracy shear_flow" << (coarse ? " --coarse" : "")
+     << "` (bench/accuracy). One cell (R = 6 um, E = 10 Pa, nu = 0.48, lambda = 1) in the default box "
+     << "(10 x 15 x 5 R) at Ca = " << sweep.capillary_number
+     << ", run until D is steady (relative change below " << sweep.steady_tolerance << " over "
+     << sweep.steady_window_strain << " strain units, at most " << sweep.max_strain << "), " << sweep.threads
+     << " thread(s). One setting moves at a time around the default (" << base.key() << ").\n\n";
+  md << "- **steady D**: mean Taylor deformation over the last steady window.\n";
+  md << "- **error**: |D / D_ref - 1| against the finest setting of the row's sweep (the resolution sweep: "
+        "the resolution reference below).\n";
+  md << "- **total error**: the same against the resolution reference, for every row: " << reference_note
+     << " Reference D = " << number_text(reference_d, "%.5f") << ".\n";
+  md << "- **error vs 5/4 Ca**: against Roscoe's small-Ca limit D = 5/4 Ca = "
+     << number_text(small_ca_d, "%.5f") << " (Roscoe's lambda = 1 table: 0.0621 at Ca = 0.05).\n";
+  md << "- Time steps in the steps column; wall times on a shared machine include waiting, the CSV also has "
+        "the process CPU time.\n";
+  md << "- The default setting: steady D " << number_text(default_run.taylor_deformation, "%.5f") << ", "
+     << number_text(100.0 * relative_error(default_run.taylor_deformation, reference_d), "%.1f")
+     << " % from the resolution reference, "
+     << number_text(100.0 * relative_error(default_run.taylor_deformation, small_ca_d), "%.1f")
+     << " % from 5/4 Ca, in " << number_text(default_run.wall_s, "%.1f") << " s wall time.\n";
+  md << "- Whole sweep: " << number_text(total_s, "%.0f") << " s wall time (" << runner.runs().size()
+     << " distinct runs).\n";
+  md << "- Plot: shear_flow.svg (total error against wall time; Pareto front boxed, default ringed).\n\n";
+  md << "## Runs\n\n| run | steady D | D / (5/4 Ca) | inclination [deg] | minus (45 deg - 5/4 Ca rad) [deg] "
+        "| tank treading / gammadot | wall [s] |\n|---|---|---|---|---|---|---|\n";
+  const double small_ca_theta = scenes::small_ca_inclination_deg_lambda1(sweep.capillary_number);
+  for (const auto& [setting, r] : runner.runs()) {
+    md << "| " << setting.key() << " | " << number_text(r.taylor_deformation, "%.5f") << " | "
+       << number_text(r.taylor_deformation / small_ca_d, "%.3f") << " | "
+       << number_text(r.inclination_deg, "%.2f") << " | "
+       << number_text(r.inclination_deg - small_ca_theta, "%+.2f") << " | "
+       << number_text(r.tank_treading_over_shear_rate, "%.4f") << " | " << number_text(r.wall_s, "%.1f")
+       << " |\n";
+  }
+  md << "\n## Sweeps";
+
+  ReportLabels labels;
+  labels.iterations_csv = "time_steps";
+  labels.iterations_md = "time steps";
+  labels.result_csv = "steady_D";
+  labels.result_md = "steady D";
+  labels.analytic_csv = "error_small_ca";
+  labels.analytic_md = "error vs 5/4 Ca";
+  labels.error_axis = "relative error of the steady D (total)";
+
+  std::filesystem::create_directories(out_dir);
+  const std::string stem = (std::filesystem::path(out_dir) / "shear_flow").string();
+  if (Status s = write_csv(stem + ".csv", rows, labels); !s.ok()) return s;
+  if (Status s = write_markdown(stem + ".md", md.str(), rows, labels); !s.ok()) return s;
+  char title[160];
+  std::snprintf(title, sizeof title, "Shear flow (Ca = %g): error of the steady D vs time",
+                sweep.capillary_number);
+  if (Status s = write_svg(stem + ".svg", title, rows, labels); !s.ok()) return s;
+  std::fprintf(stderr, "wrote %s.{csv,md,svg} in %.1f s\n", stem.c_str(), total_s);
+  return Status();
+}
+
+}  // namespace cellflow::bench

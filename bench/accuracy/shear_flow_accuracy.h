@@ -1,0 +1,50 @@
+// Accuracy sweep of the shear-flow scene (issue 5, item 1): a cell at a small
+// capillary number (default Ca = 0.05, where Roscoe's small-Ca limit
+// D = 5/4 Ca applies) run to a steady Taylor deformation with one setting at
+// a time moved away from the scene's default: lattice resolution (cells per
+// radius), mesh vertex count, immersed-boundary kernel, float or double
+// lattice storage. Each row carries three errors of the steady D:
+//   error           against the finest setting of its own sweep;
+//   total error     against the resolution reference: the Richardson
+//                   extrapolation in dx of the three finest lattices (with the
+//                   observed order), or the finest lattice where the order is
+//                   outside (0.5, 4);
+//   analytic error  against 5/4 Ca.
+// Writes shear_flow.csv, shear_flow.md and shear_flow.svg.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "physics/core/status.h"
+#include "physics/ibm/ibm.h"
+
+namespace cellflow::bench {
+
+struct ShearFlowSweep {
+  double capillary_number = 0.05;
+  std::vector<double> cells_per_radius;  // ascending; the three finest give the reference
+  std::vector<int> vertex_counts;        // ascending; the last is the sweep's reference
+  std::vector<ibm::Kernel> kernels;      // the last is the sweep's reference
+  std::vector<bool> single_precision;    // the last is the sweep's reference
+  double default_cells_per_radius = 6.0;
+  int default_vertices = 3000;
+  ibm::Kernel default_kernel = ibm::Kernel::kPeskin4;
+  bool default_single_precision = true;
+  // The steady-state rule and its cap, the same for every run.
+  double steady_tolerance = 2e-3;
+  double steady_window_strain = 2.0;
+  double max_strain = 40.0;
+  int threads = 1;
+};
+
+// The sweep the docs hold (the scene's defaults in the middle), or (coarse) a
+// tiny one that runs in seconds and exercises every code path (CI).
+ShearFlowSweep shear_flow_sweep(bool coarse);
+
+// Runs the sweep, writing progress to stderr and the three files to out_dir
+// (created if missing). Failed runs are rows with their status; the result is
+// not ok only when the files cannot be written or the finest lattice failed.
+Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& out_dir, bool coarse);
+
+}  // namespace cellflow::bench

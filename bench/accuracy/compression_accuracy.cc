@@ -128,6 +128,12 @@ bool covers_grid(const Run& r) {
   return true;
 }
 
+std::string number_text(double x, const char* fmt) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, fmt, x);
+  return buffer;
+}
+
 std::string vector_text(const std::vector<double>& v, const char* fmt) {
   std::ostringstream s;
   for (std::size_t i = 0; i < v.size(); ++i) {
@@ -329,7 +335,23 @@ Status run_compression_accuracy(const CompressionSweep& sweep, const std::string
                 "shared machine include waiting, the CSV also has the process CPU time).\n",
                 total_s, distinct_runs.size());
   md << buffer;
-  md << "- Plot: compression.svg (total error against wall time; Pareto front boxed, default ringed).\n";
+  md << "- Plot: compression.svg (total error against wall time; Pareto front boxed, default ringed).\n\n";
+  // Where along the curve the mesh error sits: the forces of each mesh and
+  // their deviation from the reference at every grid deformation.
+  md << "## Mesh sweep along the curve\n\n| actual vertex count |";
+  for (double d : sweep.grid) md << " F(" << number_text(d, "%.2g") << ") [nN] |";
+  md << "\n|---|";
+  for (std::size_t j = 0; j < sweep.grid.size(); ++j) md << "---|";
+  md << "\n";
+  for (std::size_t i = 0; i < nv; ++i) {
+    const Run& r = runner.run(vertex_settings[i]);
+    md << "| " << runner.mesh(sweep.vertex_counts[i]).vertices << " |";
+    for (std::size_t j = 0; j < sweep.grid.size(); ++j)
+      md << " " << number_text(1e9 * r.grid_forces[j], "%.4f") << " ("
+         << number_text(100.0 * (r.grid_forces[j] / mesh_reference[j] - 1.0), "%+.2f") << " %) |";
+    md << "\n";
+  }
+  md << "\n## Sweeps";
 
   std::filesystem::create_directories(out_dir);
   const std::string stem = (std::filesystem::path(out_dir) / "compression").string();

@@ -19,7 +19,9 @@ struct SphereMeshOptions {
 
 // Deterministic: the same options give the same mesh.
 // Geodesic (subdivided icosahedron) surface with every boundary vertex exactly
-// on the sphere (the nucleus surface likewise on radius nucleus_radius_m),
+// on the sphere (the nucleus surface likewise on radius nucleus_radius_m) and
+// an icosahedron vertex at both poles (0, 0, +-R), the contact points of the
+// plates and the probe, for every vertex count;
 // filled by TetGen (-pq<ratio>/<dihedral>Y -a<volume>) with a uniform edge
 // length; the volume bound is iterated until the vertex count is within 3 %
 // of the target (within 15 % guaranteed). Tets are positively oriented; a

@@ -167,7 +167,10 @@ scenes::ShearFlowParams small_flow() {
   scenes::ShearFlowParams p;
   p.cell.radius_m = 6e-6;
   p.cell.material = {.youngs_modulus_pa = 1.0, .poisson_ratio = 0.48, .mooney_rivlin_w = 1.0};
-  p.cell.target_vertex_count = 400;
+  // 600 vertices: on 400 the tank-treading mesh makes D fluctuate by +-1.7 %,
+  // more than the 5e-3 band of the steady criterion (steady only after 62
+  // strain units); 600 are steady after 6.5
+  p.cell.target_vertex_count = 600;
   p.capillary_number = 0.1;
   scenes::ShearFlowNumerics& n = p.numerics;
   n.cells_per_radius = 4.0;

@@ -37,14 +37,12 @@ double ratio(const CurvePoint& p) {
 }
 
 // F / F_Hertz at eps = 0.02, 0.05, 0.1 on the default 3000-vertex mesh
-// (nu = 0.48, w = 1). Measured with the nodal-averaged volumetric term (the
-// default): 1.160, 1.167, 1.190; with the paper's per-tet term 1.53, 1.33,
-// 1.30 (linear tets lock at nu = 0.48). What remains is the faceted sphere
-// (mean edge 0.14 R) against a Hertz contact of radius sqrt(eps) R = 0.14 R at
-// eps = 0.02: one vertex ring carries it. So the band 1.00-1.08 asked for at
-// eps = 0.02 is NOT reached on this mesh; the approach to Hertz is checked by
-// refinement in SmallDeformationLimitUnderRefinement (long): 12000 vertices
-// give 1.10 at eps = 0.05.
+// (nu = 0.48, w = 1), nodal-averaged volumetric term (the default), with a
+// mesh vertex at each pole (physics/mesh/sphere_mesh.h): 1.073, 1.114, 1.153.
+// Before the poles were put on mesh vertices the 3000-vertex mesh (geodesic
+// frequency 9) had an edge at each pole and a height 0.9977 x 2 R: 1.160,
+// 1.167, 1.190. The paper's per-tet term locks (1.53, 1.33, 1.30 then). The
+// band asked for at eps = 0.02 is 1.00-1.08.
 TEST(Compression, SmallDeformationAgainstHertzOnTheDefaultMesh) {
   const QuasiStaticResult r = run_compression(cell(3000, 1.0, 0.1, 10));
   ASSERT_TRUE(r.status.ok()) << r.status.to_string();
@@ -56,11 +54,14 @@ TEST(Compression, SmallDeformationAgainstHertzOnTheDefaultMesh) {
   // and grows with the deformation (finite size of the sphere)
   EXPECT_LT(r02, r05);
   EXPECT_LT(r05, r10);
+  // the target band of the small-deformation limit
+  EXPECT_GE(r02, 1.00);
+  EXPECT_LE(r02, 1.08);
   // measured values, 2 % bands: a change of the element, the contact law or
   // the mesher that moves them shows here
-  EXPECT_NEAR(r02, 1.160, 0.023);
-  EXPECT_NEAR(r05, 1.167, 0.023);
-  EXPECT_NEAR(r10, 1.190, 0.024);
+  EXPECT_NEAR(r02, 1.073, 0.021);
+  EXPECT_NEAR(r05, 1.114, 0.022);
+  EXPECT_NEAR(r10, 1.153, 0.023);
 }
 
 TEST(Compression, ForceScalesLinearlyWithYoungsModulus) {
@@ -115,12 +116,13 @@ TEST(Compression, PenetrationStaysBelowHalfAPercentOfTheRadius) {
   for (const CurvePoint& p : r.curve) EXPECT_LE(p.residual, 1e-6);
 }
 
-// A coarse strain-hardening cell (200 vertices, w = 0.25) compressed to 0.9:
-// at 0.84 an element gives up its volume (eq. 5's volumetric energy is bounded
-// as J -> 0). The run must end there naming the element, not return a curve
-// whose force drops (bench/stability found such curves before the guard).
+// A coarse strain-hardening cell (300 vertices, w = 0.25) compressed to 0.9:
+// at 0.87 an element gives up its volume (J = 0.12; eq. 5's volumetric energy
+// is bounded as J -> 0). The run must end there naming the element, not
+// return a curve whose force drops (bench/stability found such curves before
+// the guard).
 TEST(Compression, CrushedElementEndsTheRunInsteadOfAWrongCurve) {
-  const QuasiStaticResult r = run_compression(cell(200, 0.25, 0.9, 30));
+  const QuasiStaticResult r = run_compression(cell(300, 0.25, 0.9, 30));
   ASSERT_EQ(r.status.code(), StatusCode::kNumericalFailure) << r.status.to_string();
   EXPECT_NE(r.status.message().find("is compressed to J = "), std::string::npos) << r.status.message();
   ASSERT_GT(r.curve.size(), 20u);  // the points before it are kept
@@ -171,10 +173,14 @@ TEST(Compression, UnconvergedStepEndsTheRunNamingTheLoadStep) {
 // With a first-order error C h, the required change of at most 2 % between
 // 3000 and 12000 vertices (compression_long_test.cc) predicts at most
 // 2 % x (1.55 - 1) / (1 - 1 / 1.59) = 3.0 % between 800 and 3000.
-// Measured with the nodal-averaged volumetric term: 1.49 % (800 -> 3000) and
-// 1.66 % (3000 -> 12000, the long test); with the per-tet term 4.0 % and
-// 2.85 % (locking of linear tetrahedra at nu = 0.48). This default-suite
-// check is the coarse pair against the 3 % that the 2 % target implies.
+// Measured with the nodal-averaged volumetric term and a mesh vertex at each
+// pole: 0.73 % (800 -> 3000; the 800-vertex force is the lower one: the
+// nodal-averaged element is not an upper bound, so the test does not ask for
+// convergence from the stiff side). Before the poles were put on vertices:
+// 1.49 % (800 -> 3000) and 1.66 % (3000 -> 12000, the long test); with the
+// per-tet term 4.0 % and 2.85 % (locking of linear tetrahedra at nu = 0.48).
+// This default-suite check is the coarse pair against the 3 % that the 2 %
+// target implies.
 TEST(Compression, CoarseMeshConvergenceAtHalfCompression) {
   const QuasiStaticResult coarse = run_compression(cell(800, 0.5, 0.5, 10));
   const QuasiStaticResult fine = run_compression(cell(3000, 0.5, 0.5, 10));
@@ -183,7 +189,6 @@ TEST(Compression, CoarseMeshConvergenceAtHalfCompression) {
   const double change = std::abs(at(coarse, 0.5).force_n / at(fine, 0.5).force_n - 1.0);
   std::printf("force at 0.5: 800 -> 3000 vertices changes by %.4f\n", change);
   EXPECT_LT(change, 0.03);
-  EXPECT_GT(at(coarse, 0.5).force_n, at(fine, 0.5).force_n);  // converging from the stiff side
 }
 
 }  // namespace

@@ -33,7 +33,9 @@ CompressionParams golden_case() {
 constexpr int kGoldenPoints[3] = {1, 3, 5};  // deformation 0.2, 0.4, 0.6
 // Nodal-averaged volumetric term (elastic::VolumetricTerm::kNodalAverage, the
 // quasi-static default): 18 %, 12 % and 6 % below the per-tet element.
-constexpr double kGoldenForces[3] = {2.2385208011719024e-09, 9.988525709083987e-09, 3.9435924273002172e-08};
+// Regenerated when the mesher put a vertex at each pole (+2.9 %, -0.19 %,
+// -0.73 % against the previous mesh orientation).
+constexpr double kGoldenForces[3] = {2.3037126452162984e-09, 9.9694366890875836e-09, 3.9147159298083455e-08};
 
 TEST(GoldenCompression, ForcesAtThreePoints) {
   const QuasiStaticResult r = run_compression(golden_case());

@@ -25,31 +25,27 @@ IndentationParams particle(int vertices, double max_indentation_radii, int load_
   return p;
 }
 
-// F / F_Hertz(probe) on the default mesh at indentations 0.04 R ... 0.2 R.
-// Measured (nodal-averaged volumetric term): 1.33, 1.20, 1.16, 1.16, 1.16
-// (per-tet term: 1.87, 1.51, 1.39, 1.34, 1.32). At 0.04 R the top contact
-// radius sqrt(R12 d_top) ~ 0.1 R is below the mean edge (0.14 R): one or two
-// vertices carry the probe; from 0.12 R on the ratio settles at the same
-// excess as compression on this mesh (faceting, see compression_test.cc).
-// Asserted: the ratio never rises by more than 1 % from one point to the
-// next up to 0.2 R, and lies in [1.10, 1.25] once the contact spans a vertex
-// ring (indentation >= 0.12 R).
+// F / F_Hertz(probe) on the default mesh at indentations 0.04 R ... 0.2 R,
+// nodal-averaged volumetric term, a mesh vertex under the probe
+// (physics/mesh/sphere_mesh.h). Measured: 3000 vertices 1.013, 1.072, 1.063,
+// 1.073, 1.110; 6000: 1.054, 1.060, 1.074, 1.093, 1.085; 12000: 1.033, 1.067,
+// 1.063, 1.088, 1.094: the ratio rises slowly with depth (finite cell, the
+// bottom plate) and the 3000-vertex mesh stays within 2 % of 12000. Before the
+// pole vertex (an edge under the probe) the default mesh gave 1.33, 1.20,
+// 1.16, 1.16, 1.16. Asserted: every point within [1.00, 1.12], and the ratio
+// at 0.2 R above the one at 0.04 R.
 TEST(Indentation, ForceAgainstHertzAtSmallIndentation) {
   const QuasiStaticResult r = run_indentation(particle(3000, 0.2, 5));
   ASSERT_TRUE(r.status.ok()) << r.status.to_string();
   ASSERT_EQ(r.curve.size(), 5u);
-  double previous = 1e9;
   for (const CurvePoint& p : r.curve) {
     const double ratio = p.force_n / p.hertz_force_n;
     std::printf("indentation %.3f R: F/F_Hertz %.4f\n", p.displacement_m / 40e-6, ratio);
-    EXPECT_GT(ratio, 1.0);
-    EXPECT_LT(ratio, 1.01 * previous);
-    previous = ratio;
-    if (p.displacement_m >= 0.12 * 40e-6 - 1e-12) {
-      EXPECT_GE(ratio, 1.10);
-      EXPECT_LE(ratio, 1.25);
-    }
+    EXPECT_GE(ratio, 1.00);
+    EXPECT_LE(ratio, 1.12);
   }
+  EXPECT_GT(r.curve.back().force_n / r.curve.back().hertz_force_n,
+            r.curve.front().force_n / r.curve.front().hertz_force_n);
 }
 
 TEST(Indentation, CurveIsMonotoneAndBalanced) {

@@ -43,6 +43,19 @@ Richardson richardson_extrapolate(double h1, double h2, double h3, std::span<con
 // found by bisection on (0, 20]; NaN when ratio is out of that range.
 double observed_order(double h1, double h2, double h3, double ratio);
 
+// The settings of a one-factor sweep: `base` with `field` set to each of
+// `values` in turn.
+template <class Setting, class Field, class Values>
+std::vector<Setting> vary(const Setting& base, Field Setting::*field, const Values& values) {
+  std::vector<Setting> settings;
+  for (const auto value : values) {
+    Setting s = base;
+    s.*field = value;
+    settings.push_back(s);
+  }
+  return settings;
+}
+
 // front[i]: no other point is at least as fast and at least as accurate and
 // strictly better in one of the two. Points with a NaN or non-positive time or
 // error are never on the front and do not dominate.

@@ -176,13 +176,8 @@ Status run_compression_accuracy(const CompressionSweep& sweep, const std::string
   const Setting base{sweep.default_vertices, sweep.default_load_points, sweep.default_tolerance, 1.0};
 
   // Vertex sweep and its reference: Richardson from the three finest meshes.
-  std::vector<Setting> vertex_settings;
-  for (int n : sweep.vertex_counts) {
-    Setting s = base;
-    s.vertices = n;
-    vertex_settings.push_back(s);
-    runner.run(s);
-  }
+  const std::vector<Setting> vertex_settings = vary(base, &Setting::vertices, sweep.vertex_counts);
+  for (const Setting& s : vertex_settings) runner.run(s);
   const std::size_t nv = vertex_settings.size();
   const Run& f1 = runner.run(vertex_settings[nv - 1]);
   const Run& f2 = runner.run(vertex_settings[nv - 2]);
@@ -245,50 +240,30 @@ Status run_compression_accuracy(const CompressionSweep& sweep, const std::string
             std::to_string(target) + " (" + std::to_string(runner.mesh(target).vertices) + ")", target,
             mesh_reference, !extrapolated && i + 1 == nv);
   }
-  const auto one_factor = [&](const std::string& name, std::size_t count, auto&& setting_of, auto&& value_of,
+  // One factor at a time; the last setting of each list is its sweep's reference.
+  const auto one_factor = [&](const std::string& name, const std::vector<Setting>& settings, auto&& value_of,
                               auto&& numeric_of) {
-    const Setting finest = setting_of(count - 1);
-    const Run& ref = runner.run(finest);
-    for (std::size_t i = 0; i < count; ++i) {
-      const Setting s = setting_of(i);
-      runner.run(s);
-      add_row(name, s, value_of(i), numeric_of(i), ref.grid_forces, i + 1 == count);
+    const Run& ref = runner.run(settings.back());
+    for (std::size_t i = 0; i < settings.size(); ++i) {
+      runner.run(settings[i]);
+      add_row(name, settings[i], value_of(i), numeric_of(i), ref.grid_forces, i + 1 == settings.size());
     }
   };
   one_factor(
-      "load_points", sweep.load_points.size(),
-      [&](std::size_t i) {
-        Setting s = base;
-        s.load_points = sweep.load_points[i];
-        return s;
-      },
+      "load_points", vary(base, &Setting::load_points, sweep.load_points),
       [&](std::size_t i) { return std::to_string(sweep.load_points[i]); },
       [&](std::size_t i) { return static_cast<double>(sweep.load_points[i]); });
   one_factor(
-      "tolerance", sweep.tolerances.size(),
-      [&](std::size_t i) {
-        Setting s = base;
-        s.tolerance = sweep.tolerances[i];
-        return s;
-      },
-      [&](std::size_t i) {
-        char buffer[32];
-        std::snprintf(buffer, sizeof buffer, "%.0e", sweep.tolerances[i]);
-        return std::string(buffer);
-      },
+      "tolerance", vary(base, &Setting::tolerance, sweep.tolerances),
+      [&](std::size_t i) { return number_text(sweep.tolerances[i], "%.0e"); },
       [&](std::size_t i) { return sweep.tolerances[i]; });
+  const double default_stiffness = runner.mesh(sweep.default_vertices).default_stiffness_n_per_m;
   one_factor(
-      "contact_stiffness", sweep.contact_factors.size(),
-      [&](std::size_t i) {
-        Setting s = base;
-        s.contact_factor = sweep.contact_factors[i];
-        return s;
-      },
+      "contact_stiffness", vary(base, &Setting::contact_factor, sweep.contact_factors),
       [&](std::size_t i) {
         char buffer[64];
-        std::snprintf(
-            buffer, sizeof buffer, "x%g (%.3g N/m)", sweep.contact_factors[i],
-            sweep.contact_factors[i] * runner.mesh(sweep.default_vertices).default_stiffness_n_per_m);
+        std::snprintf(buffer, sizeof buffer, "x%g (%.3g N/m)", sweep.contact_factors[i],
+                      sweep.contact_factors[i] * default_stiffness);
         return std::string(buffer);
       },
       [&](std::size_t i) { return sweep.contact_factors[i]; });

@@ -161,13 +161,9 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
 
   // Resolution sweep and its reference: Richardson in dx / R = 1 / cpr from
   // the three finest lattices.
-  std::vector<Setting> lattice_settings;
-  for (double cpr : sweep.cells_per_radius) {
-    Setting s = base;
-    s.cells_per_radius = cpr;
-    lattice_settings.push_back(s);
-    runner.run(s);
-  }
+  const std::vector<Setting> lattice_settings =
+      vary(base, &Setting::cells_per_radius, sweep.cells_per_radius);
+  for (const Setting& s : lattice_settings) runner.run(s);
   const std::size_t nl = lattice_settings.size();
   const Run& d1 = runner.run(lattice_settings[nl - 1]);
   const Run& d2 = runner.run(lattice_settings[nl - 2]);
@@ -226,40 +222,26 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
     add_row("cells_per_radius", lattice_settings[i], number_text(sweep.cells_per_radius[i], "%g"),
             sweep.cells_per_radius[i], rich.usable ? reference_d : d1.taylor_deformation,
             !rich.usable && i + 1 == nl);
-  const auto one_factor = [&](const std::string& name, std::size_t count, auto&& setting_of, auto&& value_of,
+  // One factor at a time; the last setting of each list is its sweep's reference.
+  const auto one_factor = [&](const std::string& name, const std::vector<Setting>& settings, auto&& value_of,
                               auto&& numeric_of) {
-    const Run& ref = runner.run(setting_of(count - 1));
-    for (std::size_t i = 0; i < count; ++i) {
-      const Setting s = setting_of(i);
-      runner.run(s);
-      add_row(name, s, value_of(i), numeric_of(i), ref.taylor_deformation, i + 1 == count);
+    const Run& ref = runner.run(settings.back());
+    for (std::size_t i = 0; i < settings.size(); ++i) {
+      runner.run(settings[i]);
+      add_row(name, settings[i], value_of(i), numeric_of(i), ref.taylor_deformation,
+              i + 1 == settings.size());
     }
   };
   one_factor(
-      "vertices", sweep.vertex_counts.size(),
-      [&](std::size_t i) {
-        Setting s = base;
-        s.vertices = sweep.vertex_counts[i];
-        return s;
-      },
+      "vertices", vary(base, &Setting::vertices, sweep.vertex_counts),
       [&](std::size_t i) { return std::to_string(sweep.vertex_counts[i]); },
       [&](std::size_t i) { return static_cast<double>(sweep.vertex_counts[i]); });
   one_factor(
-      "kernel", sweep.kernels.size(),
-      [&](std::size_t i) {
-        Setting s = base;
-        s.kernel = sweep.kernels[i];
-        return s;
-      },
+      "kernel", vary(base, &Setting::kernel, sweep.kernels),
       [&](std::size_t i) { return std::string(ibm::kernel_name(sweep.kernels[i])); },
       [&](std::size_t i) { return ibm::kernel_width(sweep.kernels[i]); });
   one_factor(
-      "precision", sweep.single_precision.size(),
-      [&](std::size_t i) {
-        Setting s = base;
-        s.single_precision = sweep.single_precision[i];
-        return s;
-      },
+      "precision", vary(base, &Setting::single_precision, sweep.single_precision),
       [&](std::size_t i) { return std::string(sweep.single_precision[i] ? "float" : "double"); },
       [&](std::size_t i) { return sweep.single_precision[i] ? 4.0 : 8.0; });
 

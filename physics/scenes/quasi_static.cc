@@ -243,17 +243,17 @@ Status validate(const IndentationParams& params, std::string_view field_prefix) 
   return invalid_argument(std::move(message));
 }
 
+// The scene's parameters checked (every violation named under prefix), then
+// the cell, body and contact set up.
+template <class SceneParams>
+StatusOr<Setup> validate_and_prepare(const SceneParams& params, std::string_view prefix) {
+  if (Status s = validate(params, prefix); !s.ok()) return s;
+  return prepare(params.cell, params.numerics, prefix);
+}
+
 QuasiStaticResult run_compression(const CompressionParams& params, const SceneCallbacks& callbacks) {
-  QuasiStaticResult result;
-  if (Status s = validate(params); !s.ok()) {
-    result.status = s;
-    return result;
-  }
-  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "compression.");
-  if (!prepared.ok()) {
-    result.status = prepared.status();
-    return result;
-  }
+  StatusOr<Setup> prepared = validate_and_prepare(params, "compression.");
+  if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   // Plates start at the zero-force distance (the penalty range) from the
   // extreme vertices: first contact, no force at zero travel.
@@ -279,16 +279,8 @@ QuasiStaticResult run_compression(const CompressionParams& params, const SceneCa
 }
 
 QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCallbacks& callbacks) {
-  QuasiStaticResult result;
-  if (Status s = validate(params); !s.ok()) {
-    result.status = s;
-    return result;
-  }
-  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "indentation.");
-  if (!prepared.ok()) {
-    result.status = prepared.status();
-    return result;
-  }
+  StatusOr<Setup> prepared = validate_and_prepare(params, "indentation.");
+  if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   const double range = setup.penalty.range_m;
   const double lower_z = setup.z_bottom_m - range;

@@ -112,6 +112,7 @@ std::string failure_cause(const Status& status) {
       if (contains(m, "inverts tetrahedron") || contains(m, "inverted") || contains(m, "J <= 0"))
         return "inverted element";
       if (contains(m, "is compressed to J")) return "element volume collapse (J guard)";
+      if (contains(m, "the force fell")) return "force drop guard (obstacle slipped between vertices)";
       if (contains(m, "did not converge")) return "non-convergence";
       if (contains(m, "line search")) return "non-convergence (line search)";
       if (contains(m, "elastic energy")) return "energy blow-up / NaN guard";

@@ -48,6 +48,28 @@ TEST(Indentation, ForceAgainstHertzAtSmallIndentation) {
             r.curve.front().force_n / r.curve.front().hertz_force_n);
 }
 
+// A probe (2.5 um) not much wider than the mesh edge (1.8 um on 1000
+// vertices, R = 8.6 um) pushed to half the diameter: at 0.25 the pole vertex
+// slips sideways off the probe and the converged force falls by 4 %. The run
+// must end there with the cause, keeping the increasing part of the curve
+// (bench/stability reported this curve as WRONG before the guard).
+TEST(Indentation, ProbeSlippingBetweenVerticesEndsTheRunInsteadOfAWrongCurve) {
+  IndentationParams p;
+  p.cell.radius_m = 8.6e-6;
+  p.cell.material = {.youngs_modulus_pa = 1000.0, .poisson_ratio = 0.48, .mooney_rivlin_w = 1.0};
+  p.cell.target_vertex_count = 1000;
+  p.probe_radius_m = 2.5e-6;
+  p.max_indentation_m = 2.0 * 0.5 * p.cell.radius_m;
+  p.load_points = 20;
+  p.numerics.threads = 1;
+  const QuasiStaticResult r = run_indentation(p);
+  ASSERT_EQ(r.status.code(), StatusCode::kNumericalFailure) << r.status.to_string();
+  EXPECT_NE(r.status.message().find("the force fell"), std::string::npos) << r.status.message();
+  EXPECT_NE(r.status.message().find("cell.target_vertex_count"), std::string::npos) << r.status.message();
+  ASSERT_GE(r.curve.size(), 5u);
+  for (std::size_t i = 1; i < r.curve.size(); ++i) EXPECT_GT(r.curve[i].force_n, r.curve[i - 1].force_n);
+}
+
 TEST(Indentation, CurveIsMonotoneAndBalanced) {
   const QuasiStaticResult r = run_indentation(particle(800, 0.6, 6));
   ASSERT_TRUE(r.status.ok()) << r.status.to_string();

@@ -86,6 +86,10 @@ TEST(StabilityChecks, FailureCausesAreNamed) {
                                             "tetrahedron 12 (J <= 0) or raises the energy")),
             "inverted element");
   EXPECT_EQ(failure_cause(numerical_failure("time step 10: vertex velocity is NaN")), "NaN guard");
+  EXPECT_EQ(
+      failure_cause(numerical_failure("load step 9 of 20 (target deformation 0.25): the force fell from "
+                                      "8.9e-07 N to 8.5e-07 N with more travel")),
+      "force drop guard (obstacle slipped between vertices)");
   EXPECT_EQ(failure_cause(invalid_argument("Mach number u / c_s = 0.7 exceeds shear_flow.numerics.max_mach")),
             "Mach limit (refused)");
   EXPECT_EQ(failure_cause(invalid_argument("the explicit elastic update would be unstable: ...")),

@@ -13,9 +13,9 @@
 // The default suite runs the coarse variant (4 cells per radius, 1000
 // vertices) with the band the study gives for it, D / (5/4 Ca) in [1, 1.6];
 // the build with SHEAR_FLOW_LONG (label long) runs 12 cells per radius and
-// 8000 vertices against the full target, 10 % (measured: D / (5/4 Ca) = 1.088
-// at Ca = 0.02, 635 s, and 1.074 at Ca = 0.05, 418 s, on one core; the
-// inclination 0.78 and 0.18 degrees above pi/4 - (5/4) Ca).
+// 8000 vertices against the full target, 10 % (measured: D / (5/4 Ca) = 1.081
+// at Ca = 0.02, 360 s, and 1.075 at Ca = 0.05, 410 s, on one core; the
+// inclination 0.72 and 0.17 degrees above pi/4 - (5/4) Ca).
 #include <gtest/gtest.h>
 
 #include <cmath>

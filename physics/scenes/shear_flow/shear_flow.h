@@ -68,8 +68,8 @@ struct ShearFlowNumerics {
   // Lattice nodes per cell radius R / dx, in [2, 64]. 6 (bench/shear_flow,
   // Ca = 0.2, 3000 vertices, one core): steady in ~100 s with D 14 % above
   // Roscoe; 4: 15 s, +22 %; 8: 250 s, +10 %. 12 cells and 8000 vertices
-  // (shear_flow_validation_long_test, one core) measured D at +8.8 % (Ca 0.02,
-  // 635 s) and +7.4 % (Ca 0.05, 418 s) from (5/4) Ca.
+  // (shear_flow_validation_long_test, one core) measured D at +8.1 % (Ca 0.02,
+  // 360 s) and +7.5 % (Ca 0.05, 410 s) from (5/4) Ca.
   double cells_per_radius = 6.0;
   double box_x_radii = 10.0;     // box length along the flow / R (periodic)
   double box_y_radii = 15.0;     // wall distance H / R

@@ -26,7 +26,8 @@ struct RoscoeRow {
 // roscoe_elastic_sphere_shear.csv, columns D_lambda1, theta_deg_lambda1, tanktread_over_gammadot_lambda1
 constexpr RoscoeRow kRoscoe[] = {{0.05, 0.0621, 41.45, 0.4962}, {0.1, 0.1216, 38.07, 0.4854},
                                  {0.2, 0.2273, 32.19, 0.4509},  {0.4, 0.3821, 24.09, 0.3726},
-                                 {0.8, 0.0, 0.0, 0.0},          {1.6, 0.0, 0.0, 0.0}};
+                                 {0.8, 0.0, 0.0, 0.0},          {1.6, 0.0, 0.0, 0.0},
+                                 {2.0, 0.7656, 7.56, 0.1305}};
 // Ca = 0.8 and 1.6 are not rows of the table: interpolate linearly between
 // its neighbours (0.75, 1) and (1.5, 2).
 RoscoeRow roscoe(double ca) {

@@ -1,7 +1,7 @@
 // cellflow-bench: benchmarks of run time against error (issue 5).
 //
 //   cellflow-bench accuracy compression [--out DIR] [--coarse] [--threads 1]
-//   cellflow-bench accuracy shear_flow  [--out DIR] [--coarse] [--threads 1]
+//   cellflow-bench accuracy shear_flow  [--out DIR] [--coarse] [--threads 1] [--resume]
 //   cellflow-bench accuracy all         [--out DIR] [--coarse] [--threads 1]
 //
 // Sweeps the settings that trade time for accuracy of a scene and writes
@@ -28,6 +28,11 @@ int main(int argc, char** argv) {
   std::string out_dir = "accuracy-out";
   bool coarse = false;
   int threads = 1;
+  bool resume = false;
+  for (CLI::App* scene : {shear_flow, all})
+    scene->add_flag("--resume", resume,
+                    "shear flow: reuse the runs recorded in OUT/shear_flow_runs.tsv by an earlier sweep "
+                    "(same Ca and stop rule)");
   for (CLI::App* scene : {compression, shear_flow, all}) {
     scene->add_option("--out", out_dir, "output folder (created if missing)");
     scene->add_flag("--coarse", coarse, "tiny sweep for CI (seconds)");
@@ -50,6 +55,7 @@ int main(int argc, char** argv) {
   if (shear_flow->parsed() || all->parsed()) {
     cellflow::bench::ShearFlowSweep sweep = cellflow::bench::shear_flow_sweep(coarse);
     sweep.threads = threads;
+    sweep.resume = resume;
     report("shear_flow", cellflow::bench::run_shear_flow_accuracy(sweep, out_dir, coarse));
   }
   return failures == 0 ? 0 : 1;

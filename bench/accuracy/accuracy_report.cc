@@ -15,14 +15,8 @@ namespace cellflow::bench {
 
 namespace {
 
-std::string format(const char* fmt, double x) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, fmt, x);
-  return buffer;
-}
-
 std::string error_text(double e) {
-  return std::isfinite(e) ? format("%.3e", e) : "n/a";
+  return std::isfinite(e) ? number_text(e, "%.3e") : "n/a";
 }
 
 std::string csv_quoted(const std::string& s) {
@@ -60,6 +54,12 @@ std::string xml_escaped(const std::string& s) {
 
 }  // namespace
 
+std::string number_text(double x, const char* fmt) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, fmt, x);
+  return buffer;
+}
+
 Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows, const ReportLabels& labels) {
   const bool result = !labels.result_csv.empty(), analytic = !labels.analytic_csv.empty();
   std::ostringstream out;
@@ -67,12 +67,12 @@ Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows, 
       << (result ? labels.result_csv + "," : "") << "error,total_error,"
       << (analytic ? labels.analytic_csv + "," : "") << "status\n";
   for (const auto& r : rows) {
-    out << r.sweep << ',' << csv_quoted(r.value) << ',' << format("%.6g", r.numeric_value) << ','
-        << (r.is_default ? 1 : 0) << ',' << (r.is_reference ? 1 : 0) << ',' << format("%.3f", r.wall_s) << ','
-        << format("%.3f", r.cpu_s) << ',' << r.iterations << ',';
-    if (result) out << format("%.6e", r.result) << ',';
-    out << format("%.6e", r.error) << ',' << format("%.6e", r.total_error) << ',';
-    if (analytic) out << format("%.6e", r.analytic_error) << ',';
+    out << r.sweep << ',' << csv_quoted(r.value) << ',' << number_text(r.numeric_value, "%.6g") << ','
+        << (r.is_default ? 1 : 0) << ',' << (r.is_reference ? 1 : 0) << ',' << number_text(r.wall_s, "%.3f")
+        << ',' << number_text(r.cpu_s, "%.3f") << ',' << r.iterations << ',';
+    if (result) out << number_text(r.result, "%.6e") << ',';
+    out << number_text(r.error, "%.6e") << ',' << number_text(r.total_error, "%.6e") << ',';
+    if (analytic) out << number_text(r.analytic_error, "%.6e") << ',';
     out << csv_quoted(r.status) << '\n';
   }
   return write_text(path, out.str());
@@ -91,8 +91,8 @@ Status write_markdown(const std::string& path, const std::string& heading,
     std::string value = r.value;
     if (r.is_default) value += " **(default)**";
     if (r.is_reference) value += " (reference)";
-    out << "| " << r.sweep << " | " << value << " | " << format("%.2f", r.wall_s) << " | ";
-    if (result) out << (std::isfinite(r.result) ? format("%.5g", r.result) : "n/a") << " | ";
+    out << "| " << r.sweep << " | " << value << " | " << number_text(r.wall_s, "%.2f") << " | ";
+    if (result) out << (std::isfinite(r.result) ? number_text(r.result, "%.5g") : "n/a") << " | ";
     out << (r.is_reference && r.error == 0.0 ? "0 (reference)" : error_text(r.error)) << " | "
         << error_text(r.total_error) << " | ";
     if (analytic) out << error_text(r.analytic_error) << " | ";

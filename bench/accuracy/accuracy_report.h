@@ -40,6 +40,9 @@ struct ReportLabels {
   std::string error_axis = "largest relative force error";  // y axis of the plot
 };
 
+// `x` through printf format `fmt` (one double), for tables and notes.
+std::string number_text(double x, const char* fmt);
+
 Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows,
                  const ReportLabels& labels = {});
 

@@ -128,19 +128,9 @@ bool covers_grid(const Run& r) {
   return true;
 }
 
-std::string number_text(double x, const char* fmt) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, fmt, x);
-  return buffer;
-}
-
 std::string vector_text(const std::vector<double>& v, const char* fmt) {
   std::ostringstream s;
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    char buffer[32];
-    std::snprintf(buffer, sizeof buffer, fmt, v[i]);
-    s << (i ? ", " : "") << buffer;
-  }
+  for (std::size_t i = 0; i < v.size(); ++i) s << (i ? ", " : "") << number_text(v[i], fmt);
   return s.str();
 }
 

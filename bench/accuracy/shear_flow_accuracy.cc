@@ -171,12 +171,6 @@ double relative_error(double value, double reference) {
   return std::abs(value / reference - 1.0);
 }
 
-std::string number_text(double x, const char* fmt) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, fmt, x);
-  return buffer;
-}
-
 }  // namespace
 
 ShearFlowSweep shear_flow_sweep(bool coarse) {

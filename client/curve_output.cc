@@ -7,7 +7,7 @@
 #include <map>
 
 #include "client/svg_plot.h"
-#include "physics/io/h5md.h"
+#include "io/h5md.h"
 
 namespace cellflow::client {
 

@@ -16,7 +16,7 @@
 #include "client/flow_output.h"
 #include "client/rpc_client.h"
 #include "client/watch_printer.h"
-#include "physics/io/xdmf.h"
+#include "io/xdmf.h"
 
 namespace {
 

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "server/memory_estimate.h"
-#include "spec/job_spec.h"
+#include "jobs/job_spec.h"
 
 namespace cellflow::server {
 
@@ -156,7 +156,7 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
     return invalid_argument("request_id: at most " + std::to_string(options_.max_request_id_length) +
                             " characters");
   }
-  if (Status valid = spec::validate(request.spec()); !valid.ok()) return valid;
+  if (Status valid = jobs::validate(request.spec()); !valid.ok()) return valid;
   const std::int64_t memory = estimate_job_memory_bytes(request.spec());
   if (options_.memory_limit_bytes > 0 && memory > options_.memory_limit_bytes) {
     return Status(

@@ -6,7 +6,7 @@
 #include <system_error>
 
 #include "physics/scenes/shear_flow/shear_flow.h"
-#include "spec/shear_flow/shear_flow_spec.h"
+#include "jobs/shear_flow/shear_flow_spec.h"
 
 namespace cellflow::server {
 
@@ -29,7 +29,7 @@ std::int64_t vertex_count(const v1::CellSpec& cell) {
 
 std::int64_t shear_flow_bytes(const v1::ShearFlowSpec& flow) {
   // The server estimates only validated specs; an invalid one has no lattice to count.
-  const StatusOr<scenes::ShearFlowParams> params = spec::to_params(flow);
+  const StatusOr<scenes::ShearFlowParams> params = jobs::to_params(flow);
   if (!params.ok()) return vertex_count(flow.cell()) * kBytesPerVertex;
   const StatusOr<scenes::ShearFlowSetup> setup = scenes::plan_shear_flow(*params);
   if (!setup.ok()) return vertex_count(flow.cell()) * kBytesPerVertex;

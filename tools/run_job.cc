@@ -6,7 +6,7 @@
 #include <sstream>
 
 #include "physics/scenes/shear_flow/shear_flow.h"
-#include "spec/job_spec.h"
+#include "jobs/job_spec.h"
 
 namespace cellflow::tools {
 
@@ -78,7 +78,7 @@ namespace {
 
 RunOutcome run_shear_flow(const v1::ShearFlowSpec& spec, std::ostream& csv, std::ostream* progress,
                           int threads) {
-  StatusOr<scenes::ShearFlowParams> params = spec::to_params(spec);
+  StatusOr<scenes::ShearFlowParams> params = jobs::to_params(spec);
   if (!params.ok()) return outcome_for(params.status());
   params->numerics.threads = threads;
   csv << deformation_csv_header() << '\n' << std::flush;
@@ -118,7 +118,7 @@ RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::o
   if (!in) return outcome_for(invalid_argument("spec file '" + spec_path + "' cannot be opened for reading"));
   std::stringstream text;
   text << in.rdbuf();
-  StatusOr<v1::JobSpec> spec = spec::job_spec_from_json(text.str());
+  StatusOr<v1::JobSpec> spec = jobs::job_spec_from_json(text.str());
   if (!spec.ok()) return outcome_for(spec.status());
   return run_job(*spec, csv, progress, threads);
 }
@@ -126,7 +126,7 @@ RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::o
 RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* progress, int threads) {
   if (threads < 0)
     return outcome_for(invalid_argument("--threads = " + std::to_string(threads) + " must be >= 0"));
-  if (Status s = spec::validate(spec); !s.ok()) return outcome_for(s);
+  if (Status s = jobs::validate(spec); !s.ok()) return outcome_for(s);
   if (spec.has_shear_flow()) return run_shear_flow(spec.shear_flow(), csv, progress, threads);
   scenes::SceneCallbacks callbacks;
   int total_points = 0;
@@ -145,13 +145,13 @@ RunOutcome run_job(const v1::JobSpec& spec, std::ostream& csv, std::ostream* pro
   csv << curve_csv_header() << '\n' << std::flush;
   scenes::QuasiStaticResult result;
   if (spec.has_compression()) {
-    StatusOr<scenes::CompressionParams> params = spec::to_params(spec.compression());
+    StatusOr<scenes::CompressionParams> params = jobs::to_params(spec.compression());
     if (!params.ok()) return outcome_for(params.status());
     total_points = params->load_points;
     params->numerics.threads = threads;
     result = scenes::run_compression(*params, callbacks);
   } else {
-    StatusOr<scenes::IndentationParams> params = spec::to_params(spec.indentation());
+    StatusOr<scenes::IndentationParams> params = jobs::to_params(spec.indentation());
     if (!params.ok()) return outcome_for(params.status());
     total_points = params->load_points;
     params->numerics.threads = threads;

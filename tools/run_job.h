@@ -9,7 +9,7 @@
 
 #include "cellflow/v1/spec.pb.h"
 #include "physics/core/status.h"
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 
 namespace cellflow::tools {

@@ -9,9 +9,9 @@
 #include <thread>
 #include <vector>
 
-#include "physics/io/h5md.h"
+#include "io/h5md.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
-#include "spec/job_spec.h"
+#include "jobs/job_spec.h"
 
 namespace cellflow::worker {
 
@@ -43,7 +43,7 @@ StatusOr<std::unique_ptr<io::H5mdWriter>> open_result(const v1::JobSpec& spec, c
                                                       const io::H5mdCreator& creator) {
   auto writer = io::H5mdWriter::create(options.result_path, creator);
   if (!writer.ok()) return writer.status();
-  if (Status s = (*writer)->write_parameters_json(spec::job_spec_to_json(spec)); !s.ok()) return s;
+  if (Status s = (*writer)->write_parameters_json(jobs::job_spec_to_json(spec)); !s.ok()) return s;
   return writer;
 }
 
@@ -387,17 +387,17 @@ v1::ForceSample force_sample_from(const scenes::CurvePoint& point) {
 RunOutcome run_job(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) {
   switch (spec.scene_case()) {
     case v1::JobSpec::kCompression: {
-      auto params = spec::to_params(spec.compression());
+      auto params = jobs::to_params(spec.compression());
       if (!params.ok()) return {params.status()};
       return run_quasi_static(spec, std::move(*params), options, events, &scenes::run_compression);
     }
     case v1::JobSpec::kIndentation: {
-      auto params = spec::to_params(spec.indentation());
+      auto params = jobs::to_params(spec.indentation());
       if (!params.ok()) return {params.status()};
       return run_quasi_static(spec, std::move(*params), options, events, &scenes::run_indentation);
     }
     case v1::JobSpec::kShearFlow: {
-      auto params = spec::to_params(spec.shear_flow());
+      auto params = jobs::to_params(spec.shear_flow());
       if (!params.ok()) return {params.status()};
       return run_shear_flow_job(spec, std::move(*params), options, events);
     }

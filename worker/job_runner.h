@@ -1,4 +1,4 @@
-// Runs one job spec in this process: converts it with spec::to_params, runs
+// Runs one job spec in this process: converts it with jobs::to_params, runs
 // its scene with callbacks that report every sample as it is computed, and
 // writes the HDF5 result (physics/io, H5MD layout). No gRPC here: the worker
 // passes callbacks that forward to the server; tests and benchmarks call it
@@ -17,7 +17,7 @@
 #include "cellflow/v1/service.pb.h"
 #include "cellflow/v1/spec.pb.h"
 #include "physics/core/status.h"
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 
 namespace cellflow::worker {

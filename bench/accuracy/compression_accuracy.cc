@@ -15,7 +15,7 @@
 #include "bench/accuracy/accuracy_report.h"
 #include "physics/contact/rigid_contact.h"
 #include "physics/mesh/sphere_mesh.h"
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 
 namespace cellflow::bench {
 

@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "physics/mesh/sphere_mesh.h"
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 
 namespace {
 

@@ -30,8 +30,8 @@
 
 #include "cellflow/v1/worker.grpc.pb.h"
 #include "client/rpc_client.h"
-#include "physics/scenes/quasi_static.h"
-#include "spec/job_spec.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
+#include "jobs/job_spec.h"
 
 namespace {
 
@@ -226,7 +226,7 @@ void bench_overhead(const fs::path& dir, int runs) {
   Server server(sub, 1, {"--worker-arg=--threads=1"});
   client::Client client(client_options(server.address));
   const v1::JobSpec spec = small_compression(5, 300);
-  auto params = spec::to_params(spec.compression());
+  auto params = jobs::to_params(spec.compression());
   if (!params.ok()) {
     std::printf("overhead: %s\n", params.status().to_string().c_str());
     return;

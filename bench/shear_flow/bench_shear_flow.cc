@@ -36,7 +36,7 @@
 #include "physics/elastic/elastic_body.h"
 #include "physics/lb/fluid.h"
 #include "physics/mesh/sphere_mesh.h"
-#include "physics/scenes/shear_flow/immersed_cell.h"
+#include "physics/coupling/immersed_cell.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/units/units.h"
 

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "physics/core/status.h"
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 
 namespace cellflow::stability {

@@ -1,6 +1,6 @@
 // H5MD writer and XDMF sidecar: round trip, layout checked with h5dump,
 // XDMF checked with xmllint, and a writer killed after a flush.
-#include "physics/io/h5md.h"
+#include "io/h5md.h"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "physics/io/xdmf.h"
+#include "io/xdmf.h"
 #include "tests/io/h5_test_util.h"
 
 namespace cellflow::io {

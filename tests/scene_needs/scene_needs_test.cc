@@ -18,8 +18,8 @@
 
 #include "physics/elastic/elastic_body.h"
 #include "physics/elastic/material.h"
-#include "physics/scenes/cell_params.h"
-#include "physics/scenes/quasi_static.h"
+#include "physics/cell/cell_params.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "scene_link_closure.h"
 
@@ -41,7 +41,7 @@ std::string listed(const char* const (&closure)[N]) {
 TEST(SceneLinkClosure, CompressionAndIndentationLinkNoLattice) {
   const std::string all = listed(kContactScenesClosure);
   // The walk reached the modules the contact scenes do use.
-  for (const char* used : {"cellflow_scenes", "cellflow_core", "cellflow_mesh", "cellflow_elastic",
+  for (const char* used : {"cellflow_quasi_static", "cellflow_core", "cellflow_mesh", "cellflow_elastic",
                            "cellflow_contact", "cellflow_solver", "cellflow_observables"}) {
     EXPECT_TRUE(links(kContactScenesClosure, used)) << used << " missing from: " << all;
   }
@@ -64,7 +64,7 @@ TEST(SceneLinkClosure, ShearFlowBuildsNoContactSearchAndNoSolver) {
         << "cellflow::shear_flow links " << t << ": " << all;
   }
   EXPECT_FALSE(links(kShearFlowClosure, "cellflow_solver")) << all;
-  EXPECT_FALSE(links(kShearFlowClosure, "cellflow_scenes")) << all;
+  EXPECT_FALSE(links(kShearFlowClosure, "cellflow_quasi_static")) << all;
 }
 
 // The body as the compression scene builds it (quasi_static.cc: the cell

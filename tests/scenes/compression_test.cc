@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 
 namespace cellflow::scenes {
 namespace {

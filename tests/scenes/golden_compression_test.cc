@@ -13,7 +13,7 @@
 
 #include <cstdio>
 
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 
 namespace cellflow::scenes {
 namespace {

@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 
 namespace cellflow::scenes {
 namespace {

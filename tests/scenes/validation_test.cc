@@ -10,7 +10,7 @@
 #include <string>
 
 #include "physics/mesh/sphere_mesh.h"
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 
 namespace cellflow::scenes {
 namespace {

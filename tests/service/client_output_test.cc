@@ -12,7 +12,7 @@
 #include "client/curve_output.h"
 #include "client/exit_codes.h"
 #include "client/watch_printer.h"
-#include "physics/io/h5md.h"
+#include "io/h5md.h"
 
 namespace cellflow::client {
 namespace {

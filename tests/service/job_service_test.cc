@@ -12,8 +12,8 @@
 #include <filesystem>
 #include <thread>
 
-#include "physics/io/h5md.h"
-#include "spec/job_spec.h"
+#include "io/h5md.h"
+#include "jobs/job_spec.h"
 #include "worker/job_runner.h"
 
 namespace cellflow::server {
@@ -266,7 +266,7 @@ TEST(JobRunnerTest, ReportsEverySampleAndWritesTheCurve) {
   EXPECT_TRUE(outcome.result_written);
   ASSERT_EQ(samples.size(), 4u);
   EXPECT_DOUBLE_EQ(last_progress, 1.0);
-  auto params = spec::to_params(spec.compression());
+  auto params = jobs::to_params(spec.compression());
   ASSERT_TRUE(params.ok());
   const auto reference = scenes::run_compression(*params);
   ASSERT_EQ(reference.curve.size(), 4u);

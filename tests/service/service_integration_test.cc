@@ -11,10 +11,10 @@
 #include <regex>
 #include <set>
 
-#include "physics/io/h5md.h"
-#include "physics/scenes/quasi_static.h"
+#include "io/h5md.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 #include "server/store.h"
-#include "spec/job_spec.h"
+#include "jobs/job_spec.h"
 #include "tests/service/service_harness.h"
 
 namespace cellflow::testing {
@@ -49,7 +49,7 @@ TEST_F(ServiceTest, SubmitWatchSucceedAndCurveEqualsLibrary) {
   EXPECT_TRUE(saw_progress);
 
   // The same spec through the library in this process.
-  auto params = spec::to_params(spec.compression());
+  auto params = jobs::to_params(spec.compression());
   ASSERT_TRUE(params.ok()) << params.status().to_string();
   const scenes::QuasiStaticResult reference = scenes::run_compression(*params);
   ASSERT_TRUE(reference.status.ok()) << reference.status.to_string();
@@ -422,7 +422,7 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   }
   auto json = io::read_parameters_json(h5);
   ASSERT_TRUE(json.ok());
-  auto spec = spec::job_spec_from_json(*json);
+  auto spec = jobs::job_spec_from_json(*json);
   ASSERT_TRUE(spec.ok()) << *json;
   EXPECT_EQ(spec->compression().load_points(), 4);
   auto frames = io::count_position_frames(h5, "cell");

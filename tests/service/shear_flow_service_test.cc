@@ -10,9 +10,9 @@
 #include <regex>
 #include <sstream>
 
-#include "physics/io/h5md.h"
+#include "io/h5md.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
-#include "spec/job_spec.h"
+#include "jobs/job_spec.h"
 #include "tests/service/service_harness.h"
 
 namespace cellflow::testing {
@@ -90,7 +90,7 @@ TEST_F(ServiceTest, ShearFlowJobStreamsSamplesAndWritesTrajectoryAndFlow) {
   EXPECT_GT(samples.back().taylor_deformation(), 0.1);  // the cell deformed
 
   // The same spec through the library in this process, on one thread as the worker.
-  auto params = spec::to_params(spec.shear_flow());
+  auto params = jobs::to_params(spec.shear_flow());
   ASSERT_TRUE(params.ok()) << params.status().to_string();
   params->numerics.threads = 1;
   const auto direct_start = std::chrono::steady_clock::now();
@@ -184,7 +184,7 @@ TEST_F(ServiceTest, ShearFlowJobStreamsSamplesAndWritesTrajectoryAndFlow) {
   const fs::path spec_json = dir_ / "flow.json";
   {
     std::ofstream out(spec_json);
-    out << spec::job_spec_to_json(spec);
+    out << jobs::job_spec_to_json(spec);
   }
   const std::string local =
       run_command(std::string(CELLFLOW_RUN_EXE) + " -q -j 1 " + spec_json.string() + " 2>/dev/null", &code);

@@ -1,7 +1,7 @@
 // proto ShearFlowSpec -> scenes::ShearFlowParams: defaults of unset fields,
 // the mapping of every set field, and a table of invalid specs with the field
 // each refusal must name.
-#include "spec/shear_flow/shear_flow_spec.h"
+#include "jobs/shear_flow/shear_flow_spec.h"
 
 #include <google/protobuf/util/json_util.h>
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 #include <functional>
 #include <string>
 
-namespace cellflow::spec {
+namespace cellflow::jobs {
 namespace {
 
 v1::ShearFlowSpec valid_spec() {
@@ -205,4 +205,4 @@ TEST(ShearFlowSpec, RefusalsNameTheField) {
 }
 
 }  // namespace
-}  // namespace cellflow::spec
+}  // namespace cellflow::jobs

@@ -16,7 +16,7 @@
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
-#include "physics/scenes/shear_flow/immersed_cell.h"
+#include "physics/coupling/immersed_cell.h"
 #include "physics/units/units.h"
 
 namespace cellflow::scenes {

@@ -45,7 +45,7 @@
 #include "physics/elastic/elastic_body.h"
 #include "physics/ibm/ibm.h"
 #include "physics/mesh/tet_mesh.h"
-#include "physics/scenes/cell_params.h"
+#include "physics/cell/cell_params.h"
 
 namespace cellflow::scenes {
 

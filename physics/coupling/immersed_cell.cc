@@ -1,4 +1,4 @@
-#include "physics/scenes/shear_flow/immersed_cell.h"
+#include "physics/coupling/immersed_cell.h"
 
 #include <algorithm>
 #include <cmath>

@@ -7,10 +7,10 @@
 
 #include "cellflow/v1/spec.pb.h"
 #include "physics/core/status.h"
-#include "physics/scenes/quasi_static.h"
-#include "spec/shear_flow/shear_flow_spec.h"  // to_params / validate of ShearFlowSpec
+#include "physics/scenes/quasi_static/quasi_static.h"
+#include "jobs/shear_flow/shear_flow_spec.h"  // to_params / validate of ShearFlowSpec
 
-namespace cellflow::spec {
+namespace cellflow::jobs {
 
 StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec);
 StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec);
@@ -22,4 +22,4 @@ Status validate(const v1::JobSpec& spec);
 StatusOr<v1::JobSpec> job_spec_from_json(const std::string& json);
 std::string job_spec_to_json(const v1::JobSpec& spec);
 
-}  // namespace cellflow::spec
+}  // namespace cellflow::jobs

@@ -10,7 +10,7 @@
 #include "physics/core/status.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 
-namespace cellflow::spec {
+namespace cellflow::jobs {
 
 // Converts and validates (fields, ranges, the IBM kernel name, the Mach
 // number and the lattice memory: everything that needs no mesh).
@@ -21,4 +21,4 @@ StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec,
 // to_params(spec).status(): what the job validation calls before queueing.
 Status validate(const v1::ShearFlowSpec& spec, std::string_view field_prefix = "shear_flow.");
 
-}  // namespace cellflow::spec
+}  // namespace cellflow::jobs

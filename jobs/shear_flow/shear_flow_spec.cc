@@ -1,10 +1,10 @@
-#include "spec/shear_flow/shear_flow_spec.h"
+#include "jobs/shear_flow/shear_flow_spec.h"
 
 #include <string>
 
-#include "spec/cell_spec.h"
+#include "jobs/cell_spec.h"
 
-namespace cellflow::spec {
+namespace cellflow::jobs {
 namespace {
 
 // Defaults of unset optional fields that the proto documents.
@@ -87,4 +87,4 @@ Status validate(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
   return to_params(spec, field_prefix).status();
 }
 
-}  // namespace cellflow::spec
+}  // namespace cellflow::jobs

@@ -6,9 +6,9 @@
 #pragma once
 
 #include "cellflow/v1/cell.pb.h"
-#include "physics/scenes/cell_params.h"
+#include "physics/cell/cell_params.h"
 
-namespace cellflow::spec {
+namespace cellflow::jobs {
 
 inline constexpr double kDefaultPoissonRatio = 0.48;
 inline constexpr double kDefaultMooneyRivlinW = 1.0;
@@ -33,4 +33,4 @@ inline scenes::CellParams to_cell(const v1::CellSpec& c, scenes::CellParams cell
   return cell;
 }
 
-}  // namespace cellflow::spec
+}  // namespace cellflow::jobs

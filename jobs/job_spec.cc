@@ -1,11 +1,11 @@
-#include "spec/job_spec.h"
+#include "jobs/job_spec.h"
 
 #include <google/protobuf/util/json_util.h>
 
-#include "spec/cell_spec.h"
-#include "spec/shear_flow/shear_flow_spec.h"
+#include "jobs/cell_spec.h"
+#include "jobs/shear_flow/shear_flow_spec.h"
 
-namespace cellflow::spec {
+namespace cellflow::jobs {
 namespace {
 
 // Documented defaults for unset optional fields (see proto/cellflow/v1/*.proto);
@@ -91,4 +91,4 @@ std::string job_spec_to_json(const v1::JobSpec& spec) {
   return json;
 }
 
-}  // namespace cellflow::spec
+}  // namespace cellflow::jobs

@@ -1,9 +1,9 @@
 // The immersed-boundary coupling of the shear-flow scene
-// (physics/scenes/shear_flow/immersed_cell.h): a force-free cell in a fluid at
+// (physics/coupling/immersed_cell.h): a force-free cell in a fluid at
 // rest stays at rest; spreading the elastic forces of a deformed cell puts
 // exactly their total force and torque into the fluid; the local clearing of
 // the force field leaves no stale force behind.
-#include "physics/scenes/shear_flow/immersed_cell.h"
+#include "physics/coupling/immersed_cell.h"
 
 #include <gtest/gtest.h>
 

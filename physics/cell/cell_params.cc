@@ -1,4 +1,4 @@
-#include "physics/scenes/cell_params.h"
+#include "physics/cell/cell_params.h"
 
 #include <charconv>
 #include <cmath>

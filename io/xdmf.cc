@@ -1,4 +1,4 @@
-#include "physics/io/xdmf.h"
+#include "io/xdmf.h"
 
 #include <hdf5.h>
 
@@ -7,7 +7,7 @@
 #include <fstream>
 #include <vector>
 
-#include "physics/io/h5_handle.h"
+#include "io/h5_handle.h"
 
 namespace cellflow::io {
 

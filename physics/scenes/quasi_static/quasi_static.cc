@@ -1,4 +1,4 @@
-#include "physics/scenes/quasi_static.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
 
 #include <algorithm>
 #include <array>

@@ -27,7 +27,7 @@
 #include "physics/core/status.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/mesh/tet_mesh.h"
-#include "physics/scenes/cell_params.h"
+#include "physics/cell/cell_params.h"
 
 namespace cellflow::scenes {
 

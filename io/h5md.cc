@@ -1,11 +1,11 @@
-#include "physics/io/h5md.h"
+#include "io/h5md.h"
 
 #include <algorithm>
 #include <array>
 #include <cstdio>
 #include <map>
 
-#include "physics/io/h5_handle.h"
+#include "io/h5_handle.h"
 
 namespace cellflow::io {
 

@@ -1,6 +1,6 @@
 // Job spec edge: protobuf JSON in and out, defaults of unset optional fields,
 // validation naming the field, the scenes that are not wired yet.
-#include "spec/job_spec.h"
+#include "jobs/job_spec.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 
 #include "tools/run_job.h"
 
-namespace cellflow::spec {
+namespace cellflow::jobs {
 namespace {
 
 constexpr const char* kMinimalCompression = R"({
@@ -181,4 +181,4 @@ TEST(RunJob, ExitCodes) {
 }
 
 }  // namespace
-}  // namespace cellflow::spec
+}  // namespace cellflow::jobs

@@ -17,6 +17,7 @@
 #include "client/rpc_client.h"
 #include "client/watch_printer.h"
 #include "io/xdmf.h"
+#include "jobs/spec_json.h"
 
 namespace {
 
@@ -55,16 +56,8 @@ std::string time_string(const google::protobuf::Timestamp& t) {
 }
 
 std::string scene_of(const v1::JobSpec& spec) {
-  switch (spec.scene_case()) {
-    case v1::JobSpec::kCompression:
-      return "compression";
-    case v1::JobSpec::kIndentation:
-      return "indentation";
-    case v1::JobSpec::kShearFlow:
-      return "shear_flow";
-    default:
-      return "-";
-  }
+  const std::string_view name = jobs::scene_name(spec);
+  return name.empty() ? "-" : std::string(name);
 }
 
 void print_job(const v1::Job& job) {
@@ -231,11 +224,13 @@ int main(int argc, char** argv) {
       }
       std::stringstream text;
       text << in.rdbuf();
-      const auto parsed = google::protobuf::util::JsonStringToMessage(text.str(), request.mutable_spec());
+      // The parser of the server and cellflow-run: the same fields, the same errors.
+      StatusOr<v1::JobSpec> parsed = jobs::job_spec_from_json(text.str());
       if (!parsed.ok()) {
-        std::fprintf(stderr, "cellflow: %s: %s\n", spec_file.c_str(), parsed.ToString().c_str());
+        std::fprintf(stderr, "cellflow: %s: %s\n", spec_file.c_str(), parsed.status().message().c_str());
         return ExitCode::kExitInvalidArgument;
       }
+      *request.mutable_spec() = std::move(*parsed);
     } else if (compression->parsed()) {
       auto* spec = request.mutable_spec()->mutable_compression();
       compression_cell.fill(compression, spec->mutable_cell());

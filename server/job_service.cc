@@ -12,8 +12,7 @@
 #include <system_error>
 #include <vector>
 
-#include "server/memory_estimate.h"
-#include "jobs/job_spec.h"
+#include "jobs/registry.h"
 
 namespace cellflow::server {
 
@@ -156,8 +155,10 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
     return invalid_argument("request_id: at most " + std::to_string(options_.max_request_id_length) +
                             " characters");
   }
-  if (Status valid = jobs::validate(request.spec()); !valid.ok()) return valid;
-  const std::int64_t memory = estimate_job_memory_bytes(request.spec());
+  // One conversion: validation and the memory estimate read the same parameters.
+  auto prepared = registry_.prepare(request.spec());
+  if (!prepared.ok()) return prepared.status();
+  const std::int64_t memory = (*prepared)->memory_bytes();
   if (options_.memory_limit_bytes > 0 && memory > options_.memory_limit_bytes) {
     return Status(
         StatusCode::kResourceExhausted,

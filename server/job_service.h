@@ -13,6 +13,7 @@
 
 #include "cellflow/v1/service.pb.h"
 #include "cellflow/v1/worker.pb.h"
+#include "jobs/registry.h"
 #include "physics/core/status.h"
 #include "server/notifier.h"
 #include "server/store.h"
@@ -87,6 +88,8 @@ class JobService {
 
   std::filesystem::path result_path(std::int64_t job_id) const;
   const JobServiceOptions& options() const { return options_; }
+  // Spec conversions made at submit so far (one per submitted spec).
+  std::int64_t spec_conversions() const { return registry_.conversions(); }
 
  private:
   std::int64_t now() const { return options_.now_ms(); }
@@ -99,6 +102,7 @@ class JobService {
   Store& store_;
   Notifier& notifier_;
   JobServiceOptions options_;
+  jobs::SceneRegistry registry_;  // converts and validates each submitted spec once
   std::atomic<bool> draining_{false};
 };
 

@@ -1,7 +1,8 @@
 // The logic of `cellflow-run SPEC.json`: read a job spec in the protobuf JSON
-// mapping, validate it, run its scene and write CSV: the force curve of a
-// quasi-static scene, the deformation time series D(t) of a shear flow.
-// main() only parses the command line (tools/cellflow_run_main.cc).
+// mapping, prepare it through the scene registry (one conversion) and run it,
+// writing CSV: the force curve of a quasi-static scene, the deformation time
+// series D(t) of a shear flow. main() only parses the command line
+// (tools/cellflow_run_main.cc).
 #pragma once
 
 #include <ostream>
@@ -9,8 +10,6 @@
 
 #include "cellflow/v1/spec.pb.h"
 #include "physics/core/status.h"
-#include "physics/scenes/quasi_static/quasi_static.h"
-#include "physics/scenes/shear_flow/shear_flow.h"
 
 namespace cellflow::tools {
 
@@ -21,17 +20,6 @@ enum ExitCode : int {
   kExitInvalidSpec = 2,       // unreadable or invalid spec, bad mesh file; the message names the field
   kExitNumericalFailure = 3,  // the run failed (curve so far still written)
 };
-
-// Header of the curve CSV: the column names carry their SI units.
-std::string curve_csv_header();
-// One row; doubles with 17 significant digits so they read back exactly.
-std::string curve_csv_row(const scenes::CurvePoint& point);
-
-// The shear-flow CSV (the columns of `cellflow result --csv` for a flow job):
-// sample, time_s, strain (gammadot t), taylor_deformation, inclination_rad,
-// net_strain, a1_m, a2_m, a3_m, tank_treading_frequency_per_s, volume_m3.
-std::string deformation_csv_header();
-std::string deformation_csv_row(const scenes::ShearFlowSample& sample);
 
 struct RunOutcome {
   ExitCode exit_code = kExitOk;

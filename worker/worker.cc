@@ -159,7 +159,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   run_options.result_path = temporary.string();
   run_options.threads = options_.threads;
   run_options.debug_delay_per_point_ms = options_.debug_delay_per_point_ms;
-  const RunOutcome outcome = run_job(leased.spec(), run_options, events);
+  const RunOutcome outcome = run_job(registry_, leased.spec(), run_options, events);
 
   // Every sample reaches the server before the attempt ends.
   reporter.close(ttl);

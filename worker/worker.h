@@ -9,6 +9,7 @@
 #include <string>
 
 #include "cellflow/v1/worker.grpc.pb.h"
+#include "jobs/registry.h"
 
 namespace cellflow::worker {
 
@@ -32,6 +33,8 @@ class Worker {
   // Asks the worker to stop: a running job is handed back to the queue. Thread-safe.
   void stop() { stop_.store(true); }
   const std::string& id() const { return id_; }
+  // Spec conversions of this worker so far (one per attempt it ran).
+  std::int64_t conversions() const { return registry_.conversions(); }
 
  private:
   void run_attempt(const v1::LeaseJobResponse& lease);
@@ -40,6 +43,7 @@ class Worker {
   WorkerOptions options_;
   std::string id_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;
+  jobs::SceneRegistry registry_;
   std::atomic<bool> stop_{false};
 };
 

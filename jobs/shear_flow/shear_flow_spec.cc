@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "jobs/cell_spec.h"
+#include "jobs/common/cell_spec.h"
 
 namespace cellflow::jobs {
 namespace {
@@ -13,7 +13,7 @@ constexpr double kDefaultViscosity = 1e-3;  // water, Pa s (paper section 7.1)
 
 }  // namespace
 
-StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
+StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
   const std::string prefix(field_prefix);
   if (!spec.has_cell()) return invalid_argument(prefix + "cell must be set");
   if (!spec.cell().has_material()) return invalid_argument(prefix + "cell.material must be set");
@@ -76,9 +76,15 @@ StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec, std::
     n.volumetric = elastic::VolumetricTerm::kNodalAverage;
   }
 
+  return params;
+}
+
+StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
+  StatusOr<scenes::ShearFlowParams> params = convert(spec, field_prefix);
+  if (!params.ok()) return params;
   // Fields, ranges, Mach number and memory; the stability check needs the
   // mesh and runs at the start of run_shear_flow.
-  const StatusOr<scenes::ShearFlowSetup> plan = scenes::plan_shear_flow(params, field_prefix);
+  const StatusOr<scenes::ShearFlowSetup> plan = scenes::plan_shear_flow(*params, field_prefix);
   if (!plan.ok()) return plan.status();
   return params;
 }

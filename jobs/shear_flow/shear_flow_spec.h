@@ -12,6 +12,11 @@
 
 namespace cellflow::jobs {
 
+// Converts: the fields of `spec` over the scene's defaults, the drive and the
+// kernel name checked; ranges are left to scenes::plan_shear_flow.
+StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec,
+                                          std::string_view field_prefix = "shear_flow.");
+
 // Converts and validates (fields, ranges, the IBM kernel name, the Mach
 // number and the lattice memory: everything that needs no mesh).
 // kInvalidArgument / kResourceExhausted name the field.

@@ -138,7 +138,7 @@ TEST(RunJob, ExampleCompressionWritesTheCurve) {
   std::istringstream lines(csv.str());
   std::string line;
   std::getline(lines, line);
-  EXPECT_EQ(line, tools::curve_csv_header());
+  EXPECT_EQ(line, jobs::curve_csv_header());
   int rows = 0;
   double last_force = 0.0;
   while (std::getline(lines, line)) {
@@ -176,7 +176,7 @@ TEST(RunJob, ExitCodes) {
   std::ostringstream failed_csv;
   const tools::RunOutcome failed = tools::run_job(*spec, failed_csv, nullptr, 1);
   EXPECT_EQ(failed.exit_code, tools::kExitNumericalFailure);
-  EXPECT_EQ(failed_csv.str(), tools::curve_csv_header() + "\n");
+  EXPECT_EQ(failed_csv.str(), jobs::curve_csv_header() + "\n");
   EXPECT_NE(failed.status.message().find("load step 0"), std::string::npos) << failed.status.message();
 }
 

@@ -126,6 +126,27 @@ TEST_F(JobServiceTest, SubmitValidatesAndEstimatesMemory) {
   EXPECT_EQ(store_->count(v1::Job::QUEUED), 1);
 }
 
+// Validation and the memory estimate read one conversion of the spec: one
+// per submitted spec, for every scene (the long request id is refused before).
+TEST_F(JobServiceTest, SubmitConvertsEachSpecOnce) {
+  EXPECT_EQ(service_->spec_conversions(), 0);
+  submit(small_compression());
+  EXPECT_EQ(service_->spec_conversions(), 1);
+  v1::JobSpec flow;
+  auto* f = flow.mutable_shear_flow();
+  f->mutable_cell()->set_radius_m(4e-6);
+  f->mutable_cell()->mutable_material()->set_youngs_modulus_pa(50.0);
+  f->mutable_cell()->set_target_vertex_count(300);
+  f->set_capillary_number(0.2);
+  submit(flow);
+  EXPECT_EQ(service_->spec_conversions(), 2);
+  v1::SubmitJobRequest bad;
+  *bad.mutable_spec() = small_compression();
+  bad.mutable_spec()->mutable_compression()->set_max_deformation(2.0);
+  EXPECT_FALSE(service_->submit(bad).ok());
+  EXPECT_EQ(service_->spec_conversions(), 3);
+}
+
 TEST_F(JobServiceTest, PageTokensAreOpaqueAndBoundToTheFilter) {
   const std::string token = encode_page_token(17, v1::Job::RUNNING);
   EXPECT_EQ(token.find("17"), std::string::npos);  // not the bare id
@@ -249,6 +270,7 @@ TEST_F(JobServiceTest, ShutdownDrainingRefusesWork) {
 // The worker's runner in process: the samples it reports and the file it
 // writes hold the library's curve, bit for bit.
 TEST(JobRunnerTest, ReportsEverySampleAndWritesTheCurve) {
+  const jobs::SceneRegistry registry;
   const fs::path path = fs::temp_directory_path() / ("cellflow_runner_" + std::to_string(getpid()) + ".h5");
   const v1::JobSpec spec = small_compression(4);
   std::vector<v1::ForceSample> samples;
@@ -261,8 +283,9 @@ TEST(JobRunnerTest, ReportsEverySampleAndWritesTheCurve) {
   };
   worker::RunOptions options;
   options.result_path = path.string();
-  const worker::RunOutcome outcome = worker::run_job(spec, options, events);
+  const worker::RunOutcome outcome = worker::run_job(registry, spec, options, events);
   ASSERT_TRUE(outcome.status.ok()) << outcome.status.to_string();
+  EXPECT_EQ(registry.conversions(), 1);  // validation, estimate and run share one conversion
   EXPECT_TRUE(outcome.result_written);
   ASSERT_EQ(samples.size(), 4u);
   EXPECT_DOUBLE_EQ(last_progress, 1.0);
@@ -285,6 +308,7 @@ TEST(JobRunnerTest, ReportsEverySampleAndWritesTheCurve) {
 }
 
 TEST(JobRunnerTest, StopsWhenAskedAndKeepsWhatWasComputed) {
+  const jobs::SceneRegistry registry;
   const fs::path path =
       fs::temp_directory_path() / ("cellflow_runner_stop_" + std::to_string(getpid()) + ".h5");
   int count = 0;
@@ -293,7 +317,7 @@ TEST(JobRunnerTest, StopsWhenAskedAndKeepsWhatWasComputed) {
   events.should_stop = [&] { return count >= 2; };
   worker::RunOptions options;
   options.result_path = path.string();
-  const worker::RunOutcome outcome = worker::run_job(small_compression(8), options, events);
+  const worker::RunOutcome outcome = worker::run_job(registry, small_compression(8), options, events);
   EXPECT_EQ(outcome.status.code(), StatusCode::kCancelled) << outcome.status.to_string();
   EXPECT_GE(outcome.samples, 2);
   EXPECT_LT(outcome.samples, 8);
@@ -308,16 +332,18 @@ TEST(JobRunnerTest, StopsWhenAskedAndKeepsWhatWasComputed) {
 // tiny valid one runs in-process, reports every sample with increasing strain
 // and writes them, the trajectory and the summary.
 TEST(JobRunnerTest, ShearFlowRunsAndWritesItsResult) {
+  const jobs::SceneRegistry registry;
   v1::JobSpec spec;
   spec.mutable_shear_flow()->set_fluid_viscosity_pa_s(1e-3);
   worker::RunOptions options;
   options.result_path =
       (fs::temp_directory_path() / ("cellflow_runner_flow_" + std::to_string(::getpid()) + ".h5")).string();
-  const worker::RunOutcome refused = worker::run_job(spec, options, {});
+  const worker::RunOutcome refused = worker::run_job(registry, spec, options, {});
   EXPECT_EQ(refused.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(refused.status.message().find("shear_flow.cell"), std::string::npos)
       << refused.status.to_string();
-  EXPECT_EQ(worker::run_job(v1::JobSpec(), options, {}).status.code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(worker::run_job(registry, v1::JobSpec(), options, {}).status.code(),
+            StatusCode::kInvalidArgument);
 
   auto* flow = spec.mutable_shear_flow();
   flow->mutable_cell()->set_radius_m(4e-6);
@@ -334,7 +360,7 @@ TEST(JobRunnerTest, ShearFlowRunsAndWritesItsResult) {
   std::vector<v1::DeformationSample> samples;
   worker::JobEvents events;
   events.deformation_sample = [&](const v1::DeformationSample& s) { samples.push_back(s); };
-  const worker::RunOutcome outcome = worker::run_job(spec, options, events);
+  const worker::RunOutcome outcome = worker::run_job(registry, spec, options, events);
   ASSERT_TRUE(outcome.status.ok()) << outcome.status.to_string();
   EXPECT_TRUE(outcome.result_written);
   ASSERT_EQ(outcome.samples, static_cast<int>(samples.size()));

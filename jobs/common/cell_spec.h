@@ -1,8 +1,8 @@
 // CellSpec and MaterialSpec (proto/cellflow/v1/cell.proto) -> scenes::CellParams,
 // shared by the spec conversion of every scene. Unset optional fields take the
 // defaults the proto documents; the scene passes its own default cell (its
-// default mesh size among them). Header-only: spec/shear_flow is its own
-// target and does not link cellflow::spec.
+// default mesh size among them). Each default is declared here once; the
+// proto comments and the docs quote it.
 #pragma once
 
 #include "cellflow/v1/cell.pb.h"

@@ -1,0 +1,49 @@
+#include "jobs/common/result_file.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <system_error>
+#include <vector>
+
+#include "jobs/spec_json.h"
+
+namespace cellflow::jobs {
+
+StatusOr<std::unique_ptr<io::H5mdWriter>> open_result(const v1::JobSpec& spec, const RunOptions& options,
+                                                      const io::H5mdCreator& creator) {
+  auto writer = io::H5mdWriter::create(options.result_path, creator);
+  if (!writer.ok()) return writer.status();
+  if (Status s = (*writer)->write_parameters_json(job_spec_to_json(spec)); !s.ok()) return s;
+  return writer;
+}
+
+RunOutcome outcome_of(const Status& scene_status, const Status& written, int samples) {
+  RunOutcome outcome;
+  outcome.samples = samples;
+  outcome.result_written = written.ok();
+  outcome.status = !scene_status.ok() ? scene_status : written;
+  return outcome;
+}
+
+void ResultRecorder::write_connectivity(const mesh::TetMesh& mesh) {
+  std::vector<std::uint8_t> region(mesh.tet_region.size());
+  for (std::size_t i = 0; i < region.size(); ++i) region[i] = static_cast<std::uint8_t>(mesh.tet_region[i]);
+  keep(writer_->write_tetrahedra("cell", mesh.tets, region));
+}
+
+std::int64_t cell_vertex_bound(const scenes::CellParams& cell) {
+  if (!cell.mesh_file.empty()) {
+    std::error_code error;
+    const auto size = std::filesystem::file_size(cell.mesh_file, error);
+    return error ? 20000 : static_cast<std::int64_t>(size / 30);
+  }
+  return std::max(cell.target_vertex_count, 0);
+}
+
+std::string csv_number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.17g", value);
+  return buffer;
+}
+
+}  // namespace cellflow::jobs

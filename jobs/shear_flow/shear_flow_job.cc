@@ -1,0 +1,271 @@
+#include "jobs/shear_flow/shear_flow_job.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <vector>
+
+#include "io/h5md.h"
+#include "jobs/common/result_file.h"
+#include "jobs/shear_flow/shear_flow_spec.h"
+
+namespace cellflow::jobs {
+namespace {
+
+// Writes one shear-flow run: the mesh connectivity once, the cell positions
+// at each snapshot, every deformation sample as time series, the fluid
+// velocity snapshots when the spec asks for them, the resolved setup up front
+// and the steady values at the end. Time is physical (s); the H5MD step is
+// the lattice time step.
+class FlowRecorder : public ResultRecorder {
+ public:
+  FlowRecorder(io::H5mdWriter* writer, const scenes::ShearFlowSetup& setup, double max_strain,
+               const JobEvents& events)
+      : ResultRecorder(writer), setup_(setup), max_strain_(max_strain), events_(events) {}
+
+  scenes::ShearFlowCallbacks callbacks() {
+    scenes::ShearFlowCallbacks cb;
+    cb.on_mesh = [this](const mesh::TetMesh& mesh) { on_mesh(mesh); };
+    cb.on_positions = [this](int, double time_s, std::span<const double> x) {
+      keep(writer_->append_positions("cell", step_of(time_s), time_s, x));
+      keep(writer_->flush());
+    };
+    cb.on_sample = [this](const scenes::ShearFlowSample& sample) { on_sample(sample); };
+    cb.on_fluid_velocity = [this](const scenes::FluidVelocitySnapshot& snap) {
+      io::UniformGrid grid;
+      grid.nx = snap.nx;
+      grid.ny = snap.ny;
+      grid.nz = snap.nz;
+      grid.spacing_m = snap.spacing_m;
+      // Lattice node (i, j, k) sits at ((i + 1/2) dx, ...) in box coordinates, as the cell positions.
+      for (double& o : grid.origin_m) o = 0.5 * snap.spacing_m;
+      keep(writer_->append_vector_field("fluid_velocity", step_of(snap.time_s), snap.time_s, grid,
+                                        snap.ux_m_per_s, snap.uy_m_per_s, snap.uz_m_per_s));
+      keep(writer_->flush());
+    };
+    cb.on_progress = [this](double fraction) {
+      if (events_.progress) {
+        char stage[64];
+        std::snprintf(stage, sizeof stage, "strain %.2f/%.4g", last_strain_, max_strain_);
+        events_.progress(fraction, stage);
+      }
+    };
+    cb.should_stop = [this] { return events_.should_stop && events_.should_stop(); };
+    return cb;
+  }
+
+  // What the run derived before the first step, so a partial result has it too.
+  void write_setup() {
+    auto put = [&](const char* name, double value, const char* unit) {
+      keep(writer_->write_scalar(std::string("/parameters/setup/") + name, value, unit));
+    };
+    put("shear_rate_per_s", setup_.shear_rate_per_s, "1/s");
+    put("capillary_number", setup_.capillary_number, "1");
+    put("shear_modulus_pa", setup_.shear_modulus_pa, "Pa");
+    put("reynolds_number_physical", setup_.reynolds_number_physical, "1");
+    put("reynolds_number_simulated", setup_.reynolds_number_simulated, "1");
+    put("simulated_density_kg_m3", setup_.simulated_density_kg_m3, "kg/m^3");
+    put("lattice_spacing_m", setup_.lattice_spacing_m, "m");
+    put("time_step_s", setup_.time_step_s, "s");
+    put("nx", setup_.nx, "1");
+    put("ny", setup_.ny, "1");
+    put("nz", setup_.nz, "1");
+    put("wall_speed_m_per_s", setup_.wall_speed_m_per_s, "m/s");
+    put("mach_number", setup_.mach_number, "1");
+    keep(writer_->flush());
+  }
+
+  // The steady values and why the run stopped; closes the file.
+  Status finish(const scenes::ShearFlowResult& result) {
+    auto put = [&](const char* name, double value, const char* unit) {
+      keep(writer_->write_scalar(std::string("/summary/") + name, value, unit));
+    };
+    keep(writer_->write_string("/summary/stop", scenes::stop_name(result.stop)));
+    if (!result.status.ok()) keep(writer_->write_string("/summary/status", result.status.to_string()));
+    if (!result.samples.empty()) {
+      put("steady_taylor_deformation", result.steady_taylor_deformation, "1");
+      put("steady_inclination_rad", result.steady_inclination_deg * std::numbers::pi / 180.0, "rad");
+      put("steady_net_strain", result.steady_net_strain, "1");
+      put("tank_treading_frequency_per_s", result.tank_treading_frequency_per_s, "1/s");
+      put("steady_relative_change", result.steady_relative_change, "1");
+      put("reference_taylor_deformation", result.reference_taylor_deformation, "1");
+      put("stiffness_ratio", result.stiffness_ratio, "1");
+      put("mesh_spacing_over_dx", result.mesh_spacing_over_dx, "1");
+      put("thickness_over_kernel", result.thickness_over_kernel, "1");
+      put("time_steps", static_cast<double>(result.time_steps), "1");
+      put("wall_time_s", result.wall_time_s, "s");
+    }
+    std::string warnings;
+    for (const std::string& w : result.warnings) warnings += (warnings.empty() ? "" : "\n") + w;
+    if (!warnings.empty()) keep(writer_->write_string("/summary/warnings", warnings));
+    keep(writer_->close());
+    return status_;
+  }
+
+  int samples() const { return samples_; }
+
+ private:
+  std::int64_t step_of(double time_s) const {
+    return setup_.time_step_s > 0.0 ? std::llround(time_s / setup_.time_step_s) : 0;
+  }
+
+  void on_mesh(const mesh::TetMesh& mesh) {
+    write_connectivity(mesh);
+    keep(writer_->flush());
+  }
+
+  void on_sample(const scenes::ShearFlowSample& s) {
+    const std::int64_t step = s.time_step;
+    const double time = s.time_s;
+    const double inclination_rad = s.inclination_deg * std::numbers::pi / 180.0;
+    auto put = [&](const char* name, double value) {
+      keep(writer_->append_observable(name, step, time, value));
+    };
+    put("strain", s.strain_units);
+    put("taylor_deformation", s.taylor_deformation);
+    put("inclination_rad", inclination_rad);
+    put("net_strain", s.net_strain);
+    keep(writer_->append_observable("semi_axes_m", step, time, std::span<const double>(s.semi_axes_m)));
+    keep(writer_->append_observable("centroid_m", step, time, std::span<const double>(s.centroid_m)));
+    put("tank_treading_frequency_per_s", s.tank_treading_frequency_per_s);
+    put("volume_m3", s.volume_m3);
+    put("elastic_energy_j", s.elastic_energy_j);
+    keep(writer_->flush());  // a killed job leaves every reported sample readable
+    ++samples_;
+    last_strain_ = s.strain_units;
+    if (events_.deformation_sample) events_.deformation_sample(deformation_sample_from(s));
+  }
+
+  scenes::ShearFlowSetup setup_;
+  double max_strain_;
+  const JobEvents& events_;
+  double last_strain_ = 0.0;
+  int samples_ = 0;
+};
+
+// One converted shear-flow job: its parameters and the lattice plan derived
+// from them (both computed once, at prepare).
+class ShearFlowJob final : public PreparedJob {
+ public:
+  ShearFlowJob(scenes::ShearFlowParams params, scenes::ShearFlowSetup setup)
+      : params_(std::move(params)), setup_(std::move(setup)) {}
+
+  std::string_view scene() const override { return "shear_flow"; }
+
+  // The baseline, the D3Q19 lattice as physics/lb allocates it (in-place AA
+  // streaming: ONE population array of 19 values per node, plus the force and
+  // velocity fields, 3 values each, in the storage precision;
+  // setup.lattice_bytes), the larger of the transient per-node buffers in
+  // double (the Couette start profile, 2 values; the fluid velocity
+  // snapshots, 3 values, when numerics.fluid_snapshots is set), and the cell
+  // mesh at the quasi-static rate per vertex.
+  std::int64_t memory_bytes() const override {
+    const double nodes = static_cast<double>(setup_.nx) * setup_.ny * setup_.nz;
+    const double transient_values = params_.numerics.fluid_snapshots ? 3.0 : 2.0;
+    const double bytes = static_cast<double>(setup_.lattice_bytes) + nodes * transient_values * 8.0;
+    return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18)) +
+           cell_vertex_bound(params_.cell) * kBytesPerVertex;
+  }
+
+  RunOutcome run(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) override {
+    RunOutcome outcome;
+    scenes::ShearFlowParams params = params_;
+    if (options.threads > 0) params.numerics.threads = options.threads;
+    io::H5mdCreator creator;
+    creator.program_version = options.program_version;
+    auto writer = open_result(spec, options, creator);
+    if (!writer.ok()) {
+      outcome.status = writer.status();
+      return outcome;
+    }
+    FlowRecorder recorder(writer->get(), setup_, params.numerics.max_strain, events);
+    recorder.write_setup();
+    if (events.progress) events.progress(0.0, "meshing");
+    const scenes::ShearFlowResult result = scenes::run_shear_flow(params, recorder.callbacks());
+    const Status written = recorder.finish(result);
+    outcome = outcome_of(result.status, written, recorder.samples());
+    if (outcome.status.ok() && events.progress)
+      events.progress(1.0, std::string(scenes::stop_name(result.stop)));
+    return outcome;
+  }
+
+  Status run_csv(const CsvSink& sink, int threads) override {
+    scenes::ShearFlowParams params = params_;
+    params.numerics.threads = threads;
+    sink.csv << deformation_csv_header() << '\n' << std::flush;
+    scenes::ShearFlowCallbacks callbacks;
+    callbacks.on_sample = [&](const scenes::ShearFlowSample& s) {
+      sink.csv << deformation_csv_row(s) << '\n' << std::flush;
+      if (sink.progress) {
+        char line[200];
+        std::snprintf(line, sizeof(line), "sample %d  strain %.2f/%.4g  D %.4f  inclination %.2f deg\n",
+                      s.index, s.strain_units, params.numerics.max_strain, s.taylor_deformation,
+                      s.inclination_deg);
+        *sink.progress << line << std::flush;
+      }
+    };
+    const scenes::ShearFlowResult result = scenes::run_shear_flow(params, callbacks);
+    if (sink.progress && !result.samples.empty()) {
+      char line[300];
+      std::snprintf(
+          line, sizeof(line),
+          "stopped: %s after %lld steps (%.1f s); Ca %.4g, steady D %.5f (5/4 Ca = %.5f), "
+          "inclination %.2f deg\n",
+          std::string(scenes::stop_name(result.stop)).c_str(), static_cast<long long>(result.time_steps),
+          result.wall_time_s, result.setup.capillary_number, result.steady_taylor_deformation,
+          scenes::small_ca_taylor_deformation(result.setup.capillary_number), result.steady_inclination_deg);
+      *sink.progress << line;
+      for (const std::string& w : result.warnings) *sink.progress << "warning: " << w << '\n';
+      *sink.progress << std::flush;
+    }
+    return result.status;
+  }
+
+ private:
+  scenes::ShearFlowParams params_;
+  scenes::ShearFlowSetup setup_;
+};
+
+}  // namespace
+
+StatusOr<std::unique_ptr<PreparedJob>> prepare_shear_flow(const v1::JobSpec& spec) {
+  StatusOr<scenes::ShearFlowParams> params = convert(spec.shear_flow());
+  if (!params.ok()) return params.status();
+  // Fields, ranges, Mach number and memory; the stability check needs the
+  // mesh and runs at the start of run_shear_flow.
+  StatusOr<scenes::ShearFlowSetup> setup = scenes::plan_shear_flow(*params, "shear_flow.");
+  if (!setup.ok()) return setup.status();
+  return std::unique_ptr<PreparedJob>(new ShearFlowJob(std::move(*params), std::move(*setup)));
+}
+
+v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& s) {
+  v1::DeformationSample sample;
+  sample.set_index(s.index);
+  sample.set_time_s(s.time_s);
+  sample.set_strain(s.strain_units);
+  sample.set_taylor_deformation(s.taylor_deformation);
+  for (double a : s.semi_axes_m) sample.add_semi_axes_m(a);
+  sample.set_inclination_rad(s.inclination_deg * std::numbers::pi / 180.0);
+  sample.set_net_strain(s.net_strain);
+  sample.set_volume_m3(s.volume_m3);
+  sample.set_tank_treading_frequency_per_s(s.tank_treading_frequency_per_s);
+  return sample;
+}
+
+std::string deformation_csv_header() {
+  return "sample,time_s,strain,taylor_deformation,inclination_rad,net_strain,a1_m,a2_m,a3_m,"
+         "tank_treading_frequency_per_s,volume_m3";
+}
+
+std::string deformation_csv_row(const scenes::ShearFlowSample& s) {
+  std::string row = std::to_string(s.index);
+  for (double v : {s.time_s, s.strain_units, s.taylor_deformation,
+                   s.inclination_deg * std::numbers::pi / 180.0, s.net_strain, s.semi_axes_m[0],
+                   s.semi_axes_m[1], s.semi_axes_m[2], s.tank_treading_frequency_per_s, s.volume_m3}) {
+    row += ',' + csv_number(v);
+  }
+  return row;
+}
+
+}  // namespace cellflow::jobs

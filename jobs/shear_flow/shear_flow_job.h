@@ -1,0 +1,32 @@
+// The shear-flow scene as a job (physics/scenes/shear_flow, paper section
+// 7.1): the proto spec converted and validated once into its parameters and
+// lattice plan, the result file (connectivity, positions at snapshots, the
+// deformation time series, fluid velocity frames, the resolved setup and the
+// steady values; layout in jobs/shear_flow/result_schema.json),
+// DeformationSample messages and the D(t) CSV.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "cellflow/v1/service.pb.h"
+#include "cellflow/v1/spec.pb.h"
+#include "jobs/scene.h"
+#include "physics/core/status.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
+
+namespace cellflow::jobs {
+
+// Registry entry (jobs/registry.cc).
+StatusOr<std::unique_ptr<PreparedJob>> prepare_shear_flow(const v1::JobSpec& spec);
+
+// A shear-flow sample as the sample message of the API (inclination in radians).
+v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& sample);
+
+// The shear-flow CSV (the columns of `cellflow result --csv` for a flow job):
+// sample, time_s, strain (gammadot t), taylor_deformation, inclination_rad,
+// net_strain, a1_m, a2_m, a3_m, tank_treading_frequency_per_s, volume_m3.
+std::string deformation_csv_header();
+std::string deformation_csv_row(const scenes::ShearFlowSample& sample);
+
+}  // namespace cellflow::jobs

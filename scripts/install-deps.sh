@@ -13,6 +13,7 @@ packages=(
   libboost-dev
   libcli11-dev libspdlog-dev nlohmann-json3-dev
   libxml2-utils
+  libzip-dev
 )
 
 SUDO=""

@@ -5,6 +5,9 @@
 # HDF5 result, and stops the server.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Every dependency first (Debian 12 packages; a no-op when all are present),
+# so that this one command works on a fresh machine.
+if [ "${CELLFLOW_SKIP_DEPS:-0}" != 1 ]; then bash scripts/install-deps.sh; fi
 build_dir=${CELLFLOW_BUILD_DIR:-build}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build_dir" -j "$(nproc)" --target cellflow-server cellflow-worker cellflow cellflow-run

@@ -3,6 +3,9 @@
 # ctest suite (everything but the labels "long" and "stability").
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Every dependency first (Debian 12 packages; a no-op when all are present),
+# so that this one command works on a fresh machine.
+if [ "${CELLFLOW_SKIP_DEPS:-0}" != 1 ]; then bash scripts/install-deps.sh; fi
 build_dir=${CELLFLOW_BUILD_DIR:-build}
 jobs=${CELLFLOW_JOBS:-$(nproc)}
 # Tests run side by side: idle OpenMP threads must sleep, not spin on a core

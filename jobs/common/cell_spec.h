@@ -1,8 +1,8 @@
 // CellSpec and MaterialSpec (proto/cellflow/v1/cell.proto) -> scenes::CellParams,
 // shared by the spec conversion of every scene. Unset optional fields take the
-// defaults the proto documents; the scene passes its own default cell (its
-// default mesh size among them). Each default is declared here once; the
-// proto comments and the docs quote it.
+// defaults of the physics structs (declared there once; the proto comments
+// quote them); the scene passes its own default cell (its default mesh size
+// among them).
 #pragma once
 
 #include "cellflow/v1/cell.pb.h"
@@ -10,14 +10,13 @@
 
 namespace cellflow::jobs {
 
-inline constexpr double kDefaultPoissonRatio = 0.48;
-inline constexpr double kDefaultMooneyRivlinW = 1.0;
-
+// Unset fields keep elastic::Material's defaults (nu = 0.48, w = 1), the one
+// place they are declared.
 inline elastic::Material to_material(const v1::MaterialSpec& m) {
   elastic::Material material;
   material.youngs_modulus_pa = m.youngs_modulus_pa();
-  material.poisson_ratio = m.has_poisson_ratio() ? m.poisson_ratio() : kDefaultPoissonRatio;
-  material.mooney_rivlin_w = m.has_mooney_rivlin_w() ? m.mooney_rivlin_w() : kDefaultMooneyRivlinW;
+  if (m.has_poisson_ratio()) material.poisson_ratio = m.poisson_ratio();
+  if (m.has_mooney_rivlin_w()) material.mooney_rivlin_w = m.mooney_rivlin_w();
   return material;
 }
 

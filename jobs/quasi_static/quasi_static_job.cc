@@ -218,7 +218,7 @@ StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec) {
   scenes::CompressionParams params;
   params.cell = to_cell(spec.cell(), scenes::CellParams{});
   params.max_deformation = spec.max_deformation();
-  params.load_points = spec.has_load_points() ? spec.load_points() : kDefaultLoadPoints;
+  if (spec.has_load_points()) params.load_points = spec.load_points();  // else the struct's default
   params.numerics = to_numerics(spec.numerics());
   if (Status s = scenes::validate(params, "compression."); !s.ok()) return s;
   return params;
@@ -231,7 +231,7 @@ StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
   params.cell = to_cell(spec.cell(), scenes::CellParams{});
   params.probe_radius_m = spec.probe_radius_m();
   params.max_indentation_m = spec.max_indentation_m();
-  params.load_points = spec.has_load_points() ? spec.load_points() : kDefaultLoadPoints;
+  if (spec.has_load_points()) params.load_points = spec.load_points();  // else the struct's default
   params.numerics = to_numerics(spec.numerics());
   if (Status s = scenes::validate(params, "indentation."); !s.ok()) return s;
   return params;

@@ -16,9 +16,6 @@
 
 namespace cellflow::jobs {
 
-// Default of an unset load_points (proto/cellflow/v1/spec.proto).
-inline constexpr int kDefaultLoadPoints = 40;
-
 // Converts and validates (field paths "compression." / "indentation.").
 StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec);
 StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec);

@@ -5,30 +5,15 @@
 #include "jobs/common/cell_spec.h"
 
 namespace cellflow::jobs {
-namespace {
-
-// Defaults of unset optional fields that the proto documents.
-constexpr double kDefaultDensity = 1e3;     // water, kg/m^3 (paper section 7.1)
-constexpr double kDefaultViscosity = 1e-3;  // water, Pa s (paper section 7.1)
-
-}  // namespace
-
 StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
   const std::string prefix(field_prefix);
   if (!spec.has_cell()) return invalid_argument(prefix + "cell must be set");
   if (!spec.cell().has_material()) return invalid_argument(prefix + "cell.material must be set");
   scenes::ShearFlowParams params;
   params.cell = to_cell(spec.cell(), scenes::flow_cell_defaults());
-  if (spec.has_fluid_density_kg_m3()) {
-    params.fluid_density_kg_m3 = spec.fluid_density_kg_m3();
-  } else {
-    params.fluid_density_kg_m3 = kDefaultDensity;
-  }
-  if (spec.has_fluid_viscosity_pa_s()) {
-    params.fluid_viscosity_pa_s = spec.fluid_viscosity_pa_s();
-  } else {
-    params.fluid_viscosity_pa_s = kDefaultViscosity;
-  }
+  // Unset: the struct's defaults (water, paper section 7.1).
+  if (spec.has_fluid_density_kg_m3()) params.fluid_density_kg_m3 = spec.fluid_density_kg_m3();
+  if (spec.has_fluid_viscosity_pa_s()) params.fluid_viscosity_pa_s = spec.fluid_viscosity_pa_s();
   switch (spec.drive_case()) {
     case v1::ShearFlowSpec::kShearRatePerS:
       params.shear_rate_per_s = spec.shear_rate_per_s();

@@ -9,9 +9,16 @@
 
 namespace cellflow::mesh {
 
+// The range make_sphere_mesh accepts: a cell radius of 0.1 um to 1 cm, and
+// target vertex counts from 200 to 20000.
+inline constexpr double kMinSphereRadiusM = 1e-7;
+inline constexpr double kMaxSphereRadiusM = 1e-2;
+inline constexpr int kMinSphereVertexCount = 200;
+inline constexpr int kMaxSphereVertexCount = 20000;
+
 struct SphereMeshOptions {
-  double radius_m = 0.0;               // R > 0
-  int target_vertex_count = 3000;      // about; 200 ... 20000
+  double radius_m = 0.0;               // R in [kMinSphereRadiusM, kMaxSphereRadiusM]
+  int target_vertex_count = 3000;      // about; kMinSphereVertexCount ... kMaxSphereVertexCount
   double nucleus_radius_m = 0.0;       // > 0: concentric nucleus region (tets marked Region::kNucleus)
   double max_radius_edge_ratio = 1.5;  // TetGen quality bound (-q); 1.1 ... 10
   double min_dihedral_deg = 10.0;      // TetGen quality bound (-q/..); 0 ... 18
@@ -27,7 +34,10 @@ struct SphereMeshOptions {
 // of the target (within 15 % guaranteed). Tets are positively oriented; a
 // sliver pass moves free interior vertices until every dihedral angle
 // exceeds min_dihedral_deg without breaking the radius-edge bound.
-// Invalid options -> kInvalidArgument naming the field and its range; the
+// Meshing runs on a sphere normalised by a power of two and is scaled back,
+// so the result does not depend on the unit beyond that exact scaling.
+// Invalid options (any double, NaN and infinities included, any int) ->
+// kInvalidArgument naming the field and its range, never a crash; the
 // nucleus must leave a shell of at least half a mesh spacing
 // (nucleus_radius_m < radius_m - h/2, h the surface edge length).
 StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options);

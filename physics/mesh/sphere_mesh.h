@@ -2,7 +2,9 @@
 // import, and a mesh-quality report.
 #pragma once
 
+#include <cstdint>
 #include <string>
+#include <string_view>
 
 #include "physics/core/status.h"
 #include "physics/mesh/tet_mesh.h"
@@ -55,7 +57,29 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options);
 // write_gmsh_msh: MSH 4.1 ASCII, physical groups 1 "cytoplasm" and 2
 // "nucleus" (one volume entity each), coordinates with 17 significant digits
 // so that read_gmsh_msh(write_gmsh_msh(m)) reproduces m bitwise.
-StatusOr<TetMesh> read_gmsh_msh(const std::string& path, double length_scale_m = 1.0);
+//
+// Hostile input: read_gmsh_msh reads `path` only if it is a regular file
+// (directories, FIFOs, devices, sockets -> kInvalidArgument; checked with
+// stat before and fstat after an O_NONBLOCK open, so nothing blocks), of at
+// most limits.max_bytes (else kResourceExhausted), whose size as read equals
+// the size stat reported (procfs/sysfs pseudo-files -> kInvalidArgument).
+// Declared counts above limits.max_nodes / max_elements -> kResourceExhausted,
+// counts the remaining bytes cannot hold -> kInvalidArgument, both before any
+// allocation, naming "path:line:" and the count. Error messages never repeat
+// the file's content.
+struct MeshReadLimits {
+  std::uint64_t max_bytes = std::uint64_t{64} << 20;  // 64 MiB
+  long long max_nodes = 2'000'000;                    // numNodes of $Nodes
+  long long max_elements = 2'000'000;                 // numElements of $Elements (all types)
+};
+StatusOr<TetMesh> read_gmsh_msh(const std::string& path, double length_scale_m = 1.0,
+                                const MeshReadLimits& limits = {});
+// The same from bytes in memory (an upload); `name` stands for the path in
+// messages. read_gmsh_msh is read_mesh_file_bytes + this.
+StatusOr<TetMesh> read_gmsh_msh_from_bytes(std::string_view bytes, std::string_view name = "<mesh bytes>",
+                                           double length_scale_m = 1.0, const MeshReadLimits& limits = {});
+// The bytes of a regular file of at most limits.max_bytes (the checks above).
+StatusOr<std::string> read_mesh_file_bytes(const std::string& path, const MeshReadLimits& limits = {});
 Status write_gmsh_msh(const TetMesh& mesh, const std::string& path);
 
 struct MeshQuality {

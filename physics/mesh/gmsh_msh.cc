@@ -229,6 +229,7 @@ struct MshContent {
   std::map<int, std::vector<int>> volume_physical_tags;  // volume entity tag -> physical tags
   bool has_entities = false;
   std::vector<long long> node_tags;
+  std::vector<int> node_tag_line;  // line of each tag, for messages
   std::vector<double> node_xyz;
   struct Tet {
     long long element_tag;
@@ -352,6 +353,7 @@ Status parse_nodes(MshLines& lines, MshContent& content, const MeshReadLimits& l
     return s;
   // Counts are checked: the reserve is at most what the text can hold.
   content.node_tags.reserve(static_cast<std::size_t>(num_nodes));
+  content.node_tag_line.reserve(static_cast<std::size_t>(num_nodes));
   content.node_xyz.reserve(3 * static_cast<std::size_t>(num_nodes));
   std::vector<long long> block;
   std::vector<double> xyz;
@@ -374,6 +376,7 @@ Status parse_nodes(MshLines& lines, MshContent& content, const MeshReadLimits& l
       long long tag = 0;
       if (!parse_number(line, tag)) return lines.error("expected a node tag (one integer)");
       content.node_tags.push_back(tag);
+      content.node_tag_line.push_back(lines.line_number());
     }
     for (long long i = 0; i < count; ++i) {
       if (Status s = lines.require(line, "$Nodes"); !s.ok()) return s;
@@ -592,14 +595,14 @@ StatusOr<TetMesh> read_gmsh_msh_from_bytes(std::string_view bytes, std::string_v
     }
     if (!s.ok()) return s;
   }
-  if (!seen_format) return invalid_argument(path + ": empty file, not a Gmsh MSH file");
+  if (!seen_format) return lines.error("empty file, not a Gmsh MSH file");
   if (!seen_nodes || !seen_elements) {
-    return invalid_argument(path + ": missing " + std::string(!seen_nodes ? "$Nodes" : "$Elements") +
-                            " section (file truncated?)");
+    return lines.error("missing " + std::string(!seen_nodes ? "$Nodes" : "$Elements") +
+                       " section at the end of the file (file truncated?)");
   }
   if (content.tets.empty()) {
     return Status(StatusCode::kFailedPrecondition,
-                  path + ": no tetrahedra (element type 4) in $Elements; a volume mesh is required");
+                  lines.where() + "no tetrahedra (element type 4) in $Elements; a volume mesh is required");
   }
 
   // Physical groups that mark the nucleus.
@@ -625,7 +628,8 @@ StatusOr<TetMesh> read_gmsh_msh_from_bytes(std::string_view bytes, std::string_v
   node_index.reserve(content.node_tags.size());
   for (std::size_t i = 0; i < content.node_tags.size(); ++i) {
     if (!node_index.emplace(content.node_tags[i], i).second) {
-      return invalid_argument(path + ": node tag " + std::to_string(content.node_tags[i]) + " appears twice");
+      return invalid_argument(path + ":" + std::to_string(content.node_tag_line[i]) + ": node tag " +
+                              std::to_string(content.node_tags[i]) + " appears twice");
     }
   }
   std::vector<std::int32_t> new_index(content.node_tags.size(), -1);
@@ -648,7 +652,8 @@ StatusOr<TetMesh> read_gmsh_msh_from_bytes(std::string_view bytes, std::string_v
     for (int d = 0; d < 3; ++d) {
       const double x = content.node_xyz[3 * i + d] * length_scale_m;
       if (!std::isfinite(x)) {
-        return invalid_argument(path + ": node " + std::to_string(content.node_tags[i]) +
+        return invalid_argument(path + ":" + std::to_string(content.node_tag_line[i]) + ": node " +
+                                std::to_string(content.node_tags[i]) +
                                 ": coordinate times length_scale_m overflows");
       }
       mesh.positions_m.push_back(x);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <mutex>
 #include <string>
@@ -24,8 +25,8 @@
 namespace cellflow::mesh {
 namespace {
 
-constexpr int kMinVertexCount = 200;
-constexpr int kMaxVertexCount = 20000;
+constexpr int kMinVertexCount = kMinSphereVertexCount;
+constexpr int kMaxVertexCount = kMaxSphereVertexCount;
 
 struct SurfaceMesh {
   std::vector<double> points;                 // 3 per vertex
@@ -295,12 +296,19 @@ double mean_edge_length(const SurfaceMesh& s) {
 }
 
 // One TetGen run over the outer surface (and the nucleus surface, an internal
-// facet, when present) with the given maximum tetrahedron volume.
-StatusOr<TetMesh> tetrahedralize_spheres(const std::vector<SurfaceMesh>& surfaces, double max_volume_m3,
+// facet, when present) with the given maximum tetrahedron volume. The
+// surfaces are in normalised units (outer radius in [1, 2), see
+// make_sphere_mesh) and `scale` (a power of two) takes them to metres; the
+// volume bound (normalised) goes to TetGen as round9(max_volume scale^3) /
+// scale^3, round9 the 9 digits of the switch string, so that the normalised
+// mesh is the exact power-of-two image of the mesh TetGen makes in metres.
+StatusOr<TetMesh> tetrahedralize_spheres(const std::vector<SurfaceMesh>& surfaces, double max_volume,
+                                         double outer_radius, double nucleus_radius, double scale,
                                          const SphereMeshOptions& options) {
   const bool with_nucleus = surfaces.size() > 1;
-  const double outer_radius_m = options.radius_m;
-  const double nucleus_radius_m = options.nucleus_radius_m;
+  const double outer_radius_m = outer_radius;
+  const double nucleus_radius_m = nucleus_radius;
+  const double scale3 = scale * scale * scale;
   tetgenio in;
   tetgenio out;
   in.firstnumber = 0;
@@ -345,16 +353,41 @@ StatusOr<TetMesh> tetrahedralize_spheres(const std::vector<SurfaceMesh>& surface
   // p: PLC input; q: quality bound (radius-edge ratio / min dihedral); Y: keep
   // the surface triangulation (no Steiner points on the sphere); a: maximum
   // volume; A: region attributes; z: zero-based indices; Q: quiet.
-  char switches[256];
-  std::snprintf(switches, sizeof(switches), "pq%.6g/%.6gYa%.9gzQ%s", options.max_radius_edge_ratio,
-                options.min_dihedral_deg, max_volume_m3, with_nucleus ? "A" : "");
+  // The numbers are set on tetgenbehavior after parsing placeholders: TetGen's
+  // parser stops at an exponent ("q1.5/1e-05" turned into switches 'e', '-',
+  // ...), and the volume bound is set in normalised units. Their values are
+  // those of the decimal text (%.6g, %.9g), as when TetGen parsed them.
+  char ratio_text[32];
+  char dihedral_text[32];
+  char volume_text[32];
+  std::snprintf(ratio_text, sizeof(ratio_text), "%.6g", options.max_radius_edge_ratio);
+  std::snprintf(dihedral_text, sizeof(dihedral_text), "%.6g", options.min_dihedral_deg);
+  std::snprintf(volume_text, sizeof(volume_text), "%.9g", max_volume * scale3);
+  char switches[256];  // for messages: the equivalent command line, volume in m^3
+  std::snprintf(switches, sizeof(switches), "pq%s/%sYa%szQ%s", ratio_text, dihedral_text, volume_text,
+                with_nucleus ? "A" : "");
+  tetgenbehavior behavior;
+  {
+    char placeholder[32];
+    std::snprintf(placeholder, sizeof(placeholder), "pq2/1Ya1zQ%s", with_nucleus ? "A" : "");
+    if (!behavior.parse_commandline(placeholder)) {
+      return Status(StatusCode::kInternal, std::string("TetGen rejected the switches ") + switches);
+    }
+  }
+  behavior.minratio = std::strtod(ratio_text, nullptr);
+  behavior.mindihedral = std::strtod(dihedral_text, nullptr);
+  behavior.maxvolume = std::strtod(volume_text, nullptr) / scale3;
+  if (!(behavior.maxvolume > 0.0) || !std::isfinite(behavior.maxvolume)) {
+    return Status(StatusCode::kInternal,
+                  std::string("volume bound out of range (switches ") + switches + ")");
+  }
   // TetGen keeps static tables and the exact-arithmetic constants of its
   // predicates in globals that every run rewrites: serialise the runs so that
   // meshing from several threads (parameter sweeps) is safe.
   static std::mutex tetgen_mutex;
   const std::lock_guard<std::mutex> lock(tetgen_mutex);
   try {
-    tetrahedralize(switches, &in, &out);
+    tetrahedralize(&behavior, &in, &out);
   } catch (int code) {
     return Status(StatusCode::kInternal,
                   "TetGen failed with code " + std::to_string(code) + " (switches " + switches + ")");
@@ -393,8 +426,11 @@ std::string format_number(double v) {
 }
 
 Status validate(const SphereMeshOptions& o) {
-  if (!(o.radius_m > 0.0) || !std::isfinite(o.radius_m)) {
-    return invalid_argument("radius_m must be > 0 (got " + format_number(o.radius_m) + ")");
+  // Written so that NaN fails every comparison and lands in the error.
+  if (!(o.radius_m >= kMinSphereRadiusM && o.radius_m <= kMaxSphereRadiusM)) {
+    return invalid_argument("radius_m must be in [" + format_number(kMinSphereRadiusM) + ", " +
+                            format_number(kMaxSphereRadiusM) + "] m (0.1 um to 1 cm) (got " +
+                            format_number(o.radius_m) + ")");
   }
   if (o.target_vertex_count < kMinVertexCount || o.target_vertex_count > kMaxVertexCount) {
     return invalid_argument("target_vertex_count must be in [" + std::to_string(kMinVertexCount) + ", " +
@@ -420,7 +456,17 @@ Status validate(const SphereMeshOptions& o) {
 
 StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
   if (Status s = validate(options); !s.ok()) return s;
-  const double radius = options.radius_m;
+  // Meshing runs in normalised units, radius in [1, 2): TetGen's predicates
+  // and volume bound are then independent of the unit. TetGen 1.5 fails on
+  // absurd coordinates (radius 1e300: orient3d/insphere products overflow to
+  // inf, an assertion in locate(); radius 1e-100: they underflow to 0, every
+  // point looks coplanar and TetGen crashes freeing its pools), so the range
+  // is also bounded by validate(). `scale` is a power of two: every step below
+  // commutes exactly with it, and the mesh equals, bit for bit, the one made
+  // directly in metres.
+  const double scale = std::ldexp(1.0, std::ilogb(options.radius_m));
+  const double radius = options.radius_m / scale;
+  const double nucleus_radius = options.nucleus_radius_m / scale;
   const double target = options.target_vertex_count;
   const bool with_nucleus = options.nucleus_radius_m > 0.0;
 
@@ -444,11 +490,11 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
       const double interior_wanted = target - surface_count(f);
       if (interior_wanted < 1.0) continue;
       // Interior vertex count scales like 1 / max volume.
-      const double scale = (predicted_count(f) - surface_count(f)) / interior_wanted;
-      if (std::abs(std::log(scale)) < best_log) {
-        best_log = std::abs(std::log(scale));
+      const double count_ratio = (predicted_count(f) - surface_count(f)) / interior_wanted;
+      if (std::abs(std::log(count_ratio)) < best_log) {
+        best_log = std::abs(std::log(count_ratio));
         frequency = f;
-        volume_scale = scale;
+        volume_scale = count_ratio;
       }
     }
   }
@@ -459,16 +505,17 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
     // A shell thinner than half a mesh spacing cannot hold proper tets (and
     // the two polyhedra would intersect); a nucleus smaller than that is not
     // resolved and makes TetGen grade the mesh far past the vertex target.
-    if (options.nucleus_radius_m < 0.5 * spacing || radius - options.nucleus_radius_m < 0.5 * spacing) {
+    if (nucleus_radius < 0.5 * spacing || radius - nucleus_radius < 0.5 * spacing) {
       return invalid_argument("nucleus_radius_m must be in [h/2, radius_m - h/2] = [" +
-                              format_number(0.5 * spacing) + ", " + format_number(radius - 0.5 * spacing) +
-                              "] for target_vertex_count " + std::to_string(options.target_vertex_count) +
-                              " (mesh spacing h = " + format_number(spacing) + "); got " +
+                              format_number(0.5 * spacing * scale) + ", " +
+                              format_number((radius - 0.5 * spacing) * scale) + "] for target_vertex_count " +
+                              std::to_string(options.target_vertex_count) +
+                              " (mesh spacing h = " + format_number(spacing * scale) + "); got " +
                               format_number(options.nucleus_radius_m));
     }
     const int nucleus_frequency =
-        std::max(2, static_cast<int>(std::lround(frequency * options.nucleus_radius_m / radius)));
-    surfaces.push_back(make_geodesic_sphere(nucleus_frequency, options.nucleus_radius_m));
+        std::max(2, static_cast<int>(std::lround(frequency * nucleus_radius / radius)));
+    surfaces.push_back(make_geodesic_sphere(nucleus_frequency, nucleus_radius));
   }
 
   const double outer_surface_count = surface_count(frequency);
@@ -482,7 +529,8 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
   double too_fine = 0.0;
   double too_coarse = 0.0;
   for (int attempt = 0; attempt < 10; ++attempt) {
-    StatusOr<TetMesh> mesh = tetrahedralize_spheres(surfaces, max_volume, options);
+    StatusOr<TetMesh> mesh =
+        tetrahedralize_spheres(surfaces, max_volume, radius, nucleus_radius, scale, options);
     if (!mesh.ok()) return mesh.status();
     const double count = static_cast<double>(mesh->num_vertices());
     const double error = std::abs(count - target) / target;
@@ -500,8 +548,8 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
     }
   }
   TetMesh& mesh = best.value();
-  remove_slivers(mesh, options.min_dihedral_deg, options.max_radius_edge_ratio, radius,
-                 options.nucleus_radius_m);
+  remove_slivers(mesh, options.min_dihedral_deg, options.max_radius_edge_ratio, radius, nucleus_radius);
+  for (double& x : mesh.positions_m) x *= scale;
   return best;
 }
 

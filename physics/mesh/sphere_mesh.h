@@ -2,16 +2,25 @@
 // import, and a mesh-quality report.
 #pragma once
 
+#include <cstdint>
 #include <string>
+#include <string_view>
 
 #include "physics/core/status.h"
 #include "physics/mesh/tet_mesh.h"
 
 namespace cellflow::mesh {
 
+// The range make_sphere_mesh accepts: a cell radius of 0.1 um to 1 cm, and
+// target vertex counts from 200 to 20000.
+inline constexpr double kMinSphereRadiusM = 1e-7;
+inline constexpr double kMaxSphereRadiusM = 1e-2;
+inline constexpr int kMinSphereVertexCount = 200;
+inline constexpr int kMaxSphereVertexCount = 20000;
+
 struct SphereMeshOptions {
-  double radius_m = 0.0;               // R > 0
-  int target_vertex_count = 3000;      // about; 200 ... 20000
+  double radius_m = 0.0;               // R in [kMinSphereRadiusM, kMaxSphereRadiusM]
+  int target_vertex_count = 3000;      // about; kMinSphereVertexCount ... kMaxSphereVertexCount
   double nucleus_radius_m = 0.0;       // > 0: concentric nucleus region (tets marked Region::kNucleus)
   double max_radius_edge_ratio = 1.5;  // TetGen quality bound (-q); 1.1 ... 10
   double min_dihedral_deg = 10.0;      // TetGen quality bound (-q/..); 0 ... 18
@@ -27,7 +36,10 @@ struct SphereMeshOptions {
 // of the target (within 15 % guaranteed). Tets are positively oriented; a
 // sliver pass moves free interior vertices until every dihedral angle
 // exceeds min_dihedral_deg without breaking the radius-edge bound.
-// Invalid options -> kInvalidArgument naming the field and its range; the
+// Meshing runs on a sphere normalised by a power of two and is scaled back,
+// so the result does not depend on the unit beyond that exact scaling.
+// Invalid options (any double, NaN and infinities included, any int) ->
+// kInvalidArgument naming the field and its range, never a crash; the
 // nucleus must leave a shell of at least half a mesh spacing
 // (nucleus_radius_m < radius_m - h/2, h the surface edge length).
 StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options);
@@ -45,7 +57,29 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options);
 // write_gmsh_msh: MSH 4.1 ASCII, physical groups 1 "cytoplasm" and 2
 // "nucleus" (one volume entity each), coordinates with 17 significant digits
 // so that read_gmsh_msh(write_gmsh_msh(m)) reproduces m bitwise.
-StatusOr<TetMesh> read_gmsh_msh(const std::string& path, double length_scale_m = 1.0);
+//
+// Hostile input: read_gmsh_msh reads `path` only if it is a regular file
+// (directories, FIFOs, devices, sockets -> kInvalidArgument; checked with
+// stat before and fstat after an O_NONBLOCK open, so nothing blocks), of at
+// most limits.max_bytes (else kResourceExhausted), whose size as read equals
+// the size stat reported (procfs/sysfs pseudo-files -> kInvalidArgument).
+// Declared counts above limits.max_nodes / max_elements -> kResourceExhausted,
+// counts the remaining bytes cannot hold -> kInvalidArgument, both before any
+// allocation, naming "path:line:" and the count. Error messages never repeat
+// the file's content.
+struct MeshReadLimits {
+  std::uint64_t max_bytes = std::uint64_t{64} << 20;  // 64 MiB
+  long long max_nodes = 2'000'000;                    // numNodes of $Nodes
+  long long max_elements = 2'000'000;                 // numElements of $Elements (all types)
+};
+StatusOr<TetMesh> read_gmsh_msh(const std::string& path, double length_scale_m = 1.0,
+                                const MeshReadLimits& limits = {});
+// The same from bytes in memory (an upload); `name` stands for the path in
+// messages. read_gmsh_msh is read_mesh_file_bytes + this.
+StatusOr<TetMesh> read_gmsh_msh_from_bytes(std::string_view bytes, std::string_view name = "<mesh bytes>",
+                                           double length_scale_m = 1.0, const MeshReadLimits& limits = {});
+// The bytes of a regular file of at most limits.max_bytes (the checks above).
+StatusOr<std::string> read_mesh_file_bytes(const std::string& path, const MeshReadLimits& limits = {});
 Status write_gmsh_msh(const TetMesh& mesh, const std::string& path);
 
 struct MeshQuality {

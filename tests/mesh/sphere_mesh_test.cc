@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <array>
+#include <climits>
 #include <cmath>
+#include <limits>
 #include <ostream>
 #include <string>
 #include <utility>
@@ -297,6 +299,121 @@ TEST(SphereMeshTest, RejectsInvalidOptionsNamingTheField) {
     EXPECT_TRUE(mesh.status().message().find('(') != std::string::npos ||
                 mesh.status().message().find('[') != std::string::npos)
         << mesh.status().message();
+  }
+}
+
+// Hostile doubles and ints (issue 13): every one an kInvalidArgument naming
+// the field and the range, never an assertion or a crash in TetGen (radius
+// 1e300 used to abort in TetGen's locate(), 1e-100 to segfault in it).
+TEST(SphereMeshTest, HostileRadiiAreRejectedWithTheRange) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (double r : {0.0, -0.0, 5e-324, 2.2e-308, 1e-300, 1e-100, 1e-20, 9.99e-8, 1.0001e-2, 1.0, 1e20, 1e300,
+                   std::numeric_limits<double>::max(), inf, -inf, nan, -nan, -1e-6, -8e-6}) {
+    SphereMeshOptions options;
+    options.radius_m = r;
+    options.target_vertex_count = 300;
+    const StatusOr<TetMesh> mesh = make_sphere_mesh(options);
+    ASSERT_FALSE(mesh.ok()) << r;
+    EXPECT_EQ(mesh.status().code(), StatusCode::kInvalidArgument) << r;
+    EXPECT_NE(mesh.status().message().find("radius_m"), std::string::npos) << mesh.status().message();
+    EXPECT_NE(mesh.status().message().find("[1e-07, 0.01]"), std::string::npos) << mesh.status().message();
+  }
+}
+
+TEST(SphereMeshTest, RangeEndsMesh) {
+  for (double r : {kMinSphereRadiusM, kMaxSphereRadiusM}) {
+    SphereMeshOptions options;
+    options.radius_m = r;
+    options.target_vertex_count = kMinSphereVertexCount;
+    const StatusOr<TetMesh> mesh = make_sphere_mesh(options);
+    ASSERT_TRUE(mesh.ok()) << r << ": " << mesh.status().to_string();
+    double max_r = 0.0;
+    for (std::size_t v = 0; v < mesh->num_vertices(); ++v) {
+      const double* x = &mesh->positions_m[3 * v];
+      max_r = std::max(max_r, std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]));
+    }
+    EXPECT_NEAR(max_r / r, 1.0, 1e-12);
+    for (std::size_t t = 0; t < mesh->num_tets(); ++t) {
+      EXPECT_GT(tet_signed_volume(mesh->positions_m.data(), &mesh->tets[4 * t]), 0.0);
+    }
+  }
+}
+
+// Meshing runs on a sphere normalised by a power of two: radii 2^k apart give
+// meshes that are exact power-of-two images of each other.
+TEST(SphereMeshTest, MeshIsUnitIndependentUnderPowerOfTwoScaling) {
+  SphereMeshOptions a;
+  a.radius_m = 5e-6;
+  a.target_vertex_count = 400;
+  a.nucleus_radius_m = 2.5e-6;
+  SphereMeshOptions b = a;
+  b.radius_m = a.radius_m * 1024.0;
+  b.nucleus_radius_m = a.nucleus_radius_m * 1024.0;
+  const StatusOr<TetMesh> ma = make_sphere_mesh(a);
+  const StatusOr<TetMesh> mb = make_sphere_mesh(b);
+  ASSERT_TRUE(ma.ok() && mb.ok());
+  ASSERT_EQ(ma->positions_m.size(), mb->positions_m.size());
+  for (std::size_t i = 0; i < ma->positions_m.size(); ++i) {
+    ASSERT_EQ(ma->positions_m[i] * 1024.0, mb->positions_m[i]) << i;
+  }
+  EXPECT_EQ(ma->tets, mb->tets);
+  EXPECT_EQ(ma->tet_region, mb->tet_region);
+}
+
+TEST(SphereMeshTest, HostileVertexCountsAreRejectedWithTheRange) {
+  for (int n : {INT_MIN, -1, 0, 1, kMinSphereVertexCount - 1, kMaxSphereVertexCount + 1, INT_MAX}) {
+    SphereMeshOptions options;
+    options.radius_m = kCellRadius;
+    options.target_vertex_count = n;
+    const StatusOr<TetMesh> mesh = make_sphere_mesh(options);
+    ASSERT_FALSE(mesh.ok()) << n;
+    EXPECT_EQ(mesh.status().code(), StatusCode::kInvalidArgument) << n;
+    EXPECT_NE(mesh.status().message().find("target_vertex_count"), std::string::npos)
+        << mesh.status().message();
+    EXPECT_NE(mesh.status().message().find("[200, 20000]"), std::string::npos) << mesh.status().message();
+  }
+}
+
+TEST(SphereMeshTest, HostileNucleusAndQualityBoundsAreRejected) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (double rn : {5e-324, 1e-300, -5e-324, 1e300, inf, -inf, nan}) {
+    SphereMeshOptions options;
+    options.radius_m = kCellRadius;
+    options.target_vertex_count = 300;
+    options.nucleus_radius_m = rn;
+    const StatusOr<TetMesh> mesh = make_sphere_mesh(options);
+    ASSERT_FALSE(mesh.ok()) << rn;
+    EXPECT_NE(mesh.status().message().find("nucleus_radius_m"), std::string::npos) << mesh.status().message();
+  }
+  for (double v : {0.0, -0.0, -1.0, 5e-324, 1.0999, 10.0001, 1e300, inf, -inf, nan}) {
+    SphereMeshOptions options;
+    options.radius_m = kCellRadius;
+    options.target_vertex_count = 300;
+    options.max_radius_edge_ratio = v;
+    const StatusOr<TetMesh> mesh = make_sphere_mesh(options);
+    ASSERT_FALSE(mesh.ok()) << v;
+    EXPECT_NE(mesh.status().message().find("max_radius_edge_ratio"), std::string::npos);
+  }
+  for (double v : {-5e-324, -1.0, 18.0001, 1e300, inf, -inf, nan}) {
+    SphereMeshOptions options;
+    options.radius_m = kCellRadius;
+    options.target_vertex_count = 300;
+    options.min_dihedral_deg = v;
+    const StatusOr<TetMesh> mesh = make_sphere_mesh(options);
+    ASSERT_FALSE(mesh.ok()) << v;
+    EXPECT_NE(mesh.status().message().find("min_dihedral_deg"), std::string::npos);
+  }
+  // In range, if odd: -0 is "no nucleus", a denormal dihedral bound is 0 in effect.
+  for (auto [rn, dihedral] : {std::pair{-0.0, 10.0}, std::pair{0.0, 5e-324}, std::pair{0.0, 1e-5}}) {
+    SphereMeshOptions options;
+    options.radius_m = kCellRadius;
+    options.target_vertex_count = 300;
+    options.nucleus_radius_m = rn;
+    options.min_dihedral_deg = dihedral;
+    const StatusOr<TetMesh> mesh = make_sphere_mesh(options);
+    EXPECT_TRUE(mesh.ok()) << rn << " " << dihedral << ": " << mesh.status().to_string();
   }
 }
 

@@ -3,9 +3,11 @@
 
 #include <CLI/CLI.hpp>
 
+#include "physics/core/passive_threads.h"
 #include "server/server.h"
 
 int main(int argc, char** argv) {
+  cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   cellflow::server::ServerOptions options;
   std::string log_level = "info";
   CLI::App app{"cellflow-server: the cellflow job service (gRPC API, SQLite queue, local worker pool)"};

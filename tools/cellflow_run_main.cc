@@ -5,9 +5,11 @@
 #include <fstream>
 #include <iostream>
 
+#include "physics/core/passive_threads.h"
 #include "tools/run_job.h"
 
 int main(int argc, char** argv) {
+  cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   CLI::App app{
       "Run a cellflow job spec (protobuf JSON mapping) locally; the force curve (compression,\n"
       "indentation) or the deformation time series D(t) (shear flow) goes to CSV.\n"

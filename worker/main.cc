@@ -7,9 +7,11 @@
 #include <cstdlib>
 #include <thread>
 
+#include "physics/core/passive_threads.h"
 #include "worker/worker.h"
 
 int main(int argc, char** argv) {
+  cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   cellflow::worker::WorkerOptions options;
   if (const char* env = std::getenv("CELLFLOW_SERVER")) options.server_address = env;
   std::string log_level = "info";

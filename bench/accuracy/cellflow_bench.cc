@@ -14,8 +14,10 @@
 
 #include "bench/accuracy/compression_accuracy.h"
 #include "bench/accuracy/shear_flow_accuracy.h"
+#include "physics/core/passive_threads.h"
 
 int main(int argc, char** argv) {
+  cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   CLI::App app{"cellflow benchmarks of run time against error"};
   app.require_subcommand(1);
   CLI::App* accuracy = app.add_subcommand("accuracy", "sweep the time-accuracy settings of a scene");

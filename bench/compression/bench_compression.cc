@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "physics/core/passive_threads.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/scenes/quasi_static/quasi_static.h"
 
@@ -100,6 +101,7 @@ CurveError compare(const QuasiStaticResult& test, const QuasiStaticResult& refer
 }  // namespace
 
 int main(int argc, char** argv) {
+  cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   CLI::App app{"Time and error of the issue's compression curve (Markdown tables on stdout)"};
   int runs = 3, threads = 0, reference_vertices = 10000;
   std::string scaling = "500,1000,3000,10000";

@@ -8,9 +8,11 @@
 #include <map>
 #include <string>
 
+#include "physics/core/passive_threads.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 
 int main(int argc, char** argv) {
+  cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   using namespace cellflow;
   std::map<std::string, std::string> args;
   for (int i = 1; i < argc; ++i) {

@@ -20,6 +20,7 @@
 #include <string>
 
 #include "bench/stability/stability_harness.h"
+#include "physics/core/passive_threads.h"
 
 namespace {
 
@@ -35,6 +36,7 @@ std::string self_executable(const char* argv0) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   namespace stability = cellflow::stability;
   CLI::App app{"Numerical stability stress matrix of the cellflow scenes"};
   std::string filter, report_path, csv_path, work_dir, run_case, result_file;

@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "physics/core/status.h"
+#include "physics/core/violations.h"
 
 namespace cellflow::elastic {
 
@@ -24,7 +25,11 @@ struct Moduli {
 // mu = E / (2 (1 + nu)), kappa = E / (3 (1 - 2 nu))   (paper eq. 6)
 Moduli moduli_from(const Material& material);
 
-// Checks every field; the message names `field_prefix` + field and the allowed
+// Every field out of range, with field names relative to the material
+// ("poisson_ratio") and the allowed range.
+Violations check(const Material& material);
+
+// check(material) as a Status; the message names `field_prefix` + field and the allowed
 // range, e.g. "compression.cell.material.poisson_ratio = 0.5 must lie in (-1, 0.5)".
 Status validate(const Material& material, std::string_view field_prefix);
 

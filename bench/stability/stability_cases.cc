@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "bench/stability/stability_harness.h"
+#include "physics/core/violations.h"
 #include "physics/elastic/material.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
@@ -33,12 +34,6 @@ constexpr double kDefaultE = 1000.0;
 // below the target (Re_p = rho Ca mu R^2 / eta^2 = 0.05 at Ca 4): otherwise the
 // physical density is simulated and the Mach limit refuses the job.
 constexpr double kFlowE = 1.0;
-
-std::string num(double v) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.4g", v);
-  return buffer;
-}
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -182,7 +177,8 @@ CaseResult run_compression_case(const scenes::CompressionParams& p, std::string 
   const auto t0 = std::chrono::steady_clock::now();
   const scenes::QuasiStaticResult r = scenes::run_compression(p, callbacks);
   const double seconds = seconds_since(t0);
-  std::string detail = mesh_note + num(r.curve.size()) + " of " + std::to_string(p.load_points) + " points";
+  std::string detail =
+      mesh_note + number_text(r.curve.size(), 4) + " of " + std::to_string(p.load_points) + " points";
   if (!r.curve.empty()) {
     const scenes::CurvePoint& last = r.curve.back();
     int newton = 0, splits = 0;
@@ -200,14 +196,15 @@ CaseResult run_compression_case(const scenes::CompressionParams& p, std::string 
       if (static_cast<std::size_t>(c.index) < check.points.size())
         crushed = std::max(crushed, check.points[c.index].crushed_fraction);
     }
-    detail += ", max dV / dV(uniform J) " + num(worst_ratio) + ", min J " + num(min_j) + ", crushed volume " +
-              num(crushed);
-    detail += ", last deformation " + num(last.deformation) + ": F = " + num(last.force_n) +
-              " N, F/F_Hertz = " + num(last.force_n / last.hertz_force_n) + ", dV/V0 = " +
-              num(check.initial_volume_m3 > 0 ? last.volume_m3 / check.initial_volume_m3 - 1 : 0) +
+    detail += ", max dV / dV(uniform J) " + number_text(worst_ratio, 4) + ", min J " + number_text(min_j, 4) +
+              ", crushed volume " + number_text(crushed, 4);
+    detail += ", last deformation " + number_text(last.deformation, 4) +
+              ": F = " + number_text(last.force_n, 4) +
+              " N, F/F_Hertz = " + number_text(last.force_n / last.hertz_force_n, 4) + ", dV/V0 = " +
+              number_text(check.initial_volume_m3 > 0 ? last.volume_m3 / check.initial_volume_m3 - 1 : 0, 4) +
               ", Newton " + std::to_string(newton) + ", splits " + std::to_string(splits);
   }
-  detail += ", run " + num(seconds) + " s";
+  detail += ", run " + number_text(seconds, 4) + " s";
   if (std::optional<std::string> bad = check_compression(p, r, check)) return wrong(*bad, detail);
   return failed_or_converged(r.status, detail);
 }
@@ -223,13 +220,13 @@ CaseResult run_indentation_case(double e_pa, double nu, double w, int vertices) 
   p.numerics.threads = 1;
   const auto t0 = std::chrono::steady_clock::now();
   const scenes::QuasiStaticResult r = scenes::run_indentation(p);
-  std::string detail = num(r.curve.size()) + " of " + std::to_string(p.load_points) + " points";
+  std::string detail = number_text(r.curve.size(), 4) + " of " + std::to_string(p.load_points) + " points";
   if (!r.curve.empty()) {
-    detail += ", last deformation " + num(r.curve.back().deformation) +
-              ": F = " + num(r.curve.back().force_n) +
-              " N, F/F_Hertz = " + num(r.curve.back().force_n / r.curve.back().hertz_force_n);
+    detail += ", last deformation " + number_text(r.curve.back().deformation, 4) +
+              ": F = " + number_text(r.curve.back().force_n, 4) +
+              " N, F/F_Hertz = " + number_text(r.curve.back().force_n / r.curve.back().hertz_force_n, 4);
   }
-  detail += ", run " + num(seconds_since(t0)) + " s";
+  detail += ", run " + number_text(seconds_since(t0), 4) + " s";
   if (std::optional<std::string> bad = check_indentation(r)) return wrong(*bad, detail);
   return failed_or_converged(r.status, detail);
 }
@@ -257,16 +254,19 @@ scenes::ShearFlowParams flow(double ca) {
 
 CaseResult run_flow_case(const scenes::ShearFlowParams& p, std::string note = "") {
   const scenes::ShearFlowResult r = scenes::run_shear_flow(p);
-  std::string detail = note + "Ca " + num(r.setup.capillary_number) + ", stop " +
+  std::string detail = note + "Ca " + number_text(r.setup.capillary_number, 4) + ", stop " +
                        std::string(scenes::stop_name(r.stop)) + ", stiffness ratio " +
-                       num(r.stiffness_ratio) + ", Mach " + num(r.setup.mach_number);
+                       number_text(r.stiffness_ratio, 4) + ", Mach " + number_text(r.setup.mach_number, 4);
   if (!r.samples.empty()) {
-    detail += ", strain " + num(r.samples.back().strain_units) + ", D " + num(r.steady_taylor_deformation) +
-              " (5/4 Ca " + num(scenes::small_ca_taylor_deformation(r.setup.capillary_number)) +
-              "), net strain " + num(r.steady_net_strain) + ", steps " + std::to_string(r.time_steps);
+    detail += ", strain " + number_text(r.samples.back().strain_units, 4) + ", D " +
+              number_text(r.steady_taylor_deformation, 4) + " (5/4 Ca " +
+              number_text(scenes::small_ca_taylor_deformation(r.setup.capillary_number), 4) +
+              "), net strain " + number_text(r.steady_net_strain, 4) + ", steps " +
+              std::to_string(r.time_steps);
   }
-  detail += ", run " + num(r.wall_time_s) + " s";
-  if (!r.warnings.empty()) detail += "; under-resolved: thickness / kernel " + num(r.thickness_over_kernel);
+  detail += ", run " + number_text(r.wall_time_s, 4) + " s";
+  if (!r.warnings.empty())
+    detail += "; under-resolved: thickness / kernel " + number_text(r.thickness_over_kernel, 4);
   // A run refused up front has no samples and nothing to check.
   if (!r.samples.empty()) {
     if (std::optional<std::string> bad = check_shear_flow(r)) return wrong(*bad, detail);
@@ -300,7 +300,7 @@ std::vector<Case> make_cases(bool include_self_tests) {
   // load points: the w x nu grid.
   for (double w : {1.0, 0.5, 0.25}) {
     for (double nu : {0.45, 0.48, 0.49, 0.499}) {
-      const std::string name = "compression/grid/w" + num(w) + "-nu" + num(nu);
+      const std::string name = "compression/grid/w" + number_text(w, 4) + "-nu" + number_text(nu, 4);
       add(
           cases, name, "E 1 kPa, 3000 vertices, deformation 0.9 in 30 points", kCompressionLimit,
           [=](const CaseContext&) {
@@ -313,29 +313,30 @@ std::vector<Case> make_cases(bool include_self_tests) {
   // E R^2; contact stiffness derived from E).
   for (double e : {1.0, 1e5}) {
     for (double w : {1.0, 0.25}) {
-      add(cases, "compression/modulus/E" + num(e) + "-w" + num(w), "nu 0.48, 1000 vertices, deformation 0.9",
-          kSmallCompressionLimit,
+      add(cases, "compression/modulus/E" + number_text(e, 4) + "-w" + number_text(w, 4),
+          "nu 0.48, 1000 vertices, deformation 0.9", kSmallCompressionLimit,
           [=](const CaseContext&) { return run_compression_case(compression(e, 0.48, w, 1000, 0.9, 30)); });
     }
   }
   // Poor meshes: the coarsest sphere the mesher allows, a sliver-ridden mesh
   // read from Gmsh, a file with an inverted element.
   for (double w : {1.0, 0.25}) {
-    add(cases, "compression/mesh/coarse200-w" + num(w), "200-vertex sphere, nu 0.48, deformation 0.9",
-        kSmallCompressionLimit, [=](const CaseContext&) {
+    add(cases, "compression/mesh/coarse200-w" + number_text(w, 4),
+        "200-vertex sphere, nu 0.48, deformation 0.9", kSmallCompressionLimit, [=](const CaseContext&) {
           return run_compression_case(compression(kDefaultE, 0.48, w, 200, 0.9, 30));
         });
   }
   for (double w : {1.0, 0.5}) {
-    add(cases, "compression/mesh/slivers-w" + num(w), "500-vertex sphere with flattened tets (.msh), nu 0.48",
-        kSmallCompressionLimit, [=](const CaseContext& ctx) {
+    add(cases, "compression/mesh/slivers-w" + number_text(w, 4),
+        "500-vertex sphere with flattened tets (.msh), nu 0.48", kSmallCompressionLimit,
+        [=](const CaseContext& ctx) {
           const std::string path = ctx.work_dir + "/slivers_compression.msh";
           StatusOr<mesh::MeshQuality> q = write_sliver_mesh(path, kCompressionRadius, 500, 7);
           if (!q.ok()) return failed_or_converged(q.status(), "writing the sliver mesh");
           scenes::CompressionParams p = compression(kDefaultE, 0.48, w, 500, 0.9, 30);
           p.cell.mesh_file = path;
-          return run_compression_case(p, "min dihedral " + num(q->min_dihedral_deg) + " deg, max " +
-                                             num(q->max_dihedral_deg) + " deg; ");
+          return run_compression_case(p, "min dihedral " + number_text(q->min_dihedral_deg, 4) +
+                                             " deg, max " + number_text(q->max_dihedral_deg, 4) + " deg; ");
         });
   }
   add(cases, "compression/mesh/inverted-element", "a .msh with one inverted tetrahedron",
@@ -357,8 +358,8 @@ std::vector<Case> make_cases(bool include_self_tests) {
       });
   // Indentation extremes (probe 2.5 um, depth 0.5 of the diameter).
   for (double e : {1.0, 1e5}) {
-    add(cases, "indentation/modulus/E" + num(e), "nu 0.48, w 1, 1000 vertices", kSmallCompressionLimit,
-        [=](const CaseContext&) { return run_indentation_case(e, 0.48, 1.0, 1000); });
+    add(cases, "indentation/modulus/E" + number_text(e, 4), "nu 0.48, w 1, 1000 vertices",
+        kSmallCompressionLimit, [=](const CaseContext&) { return run_indentation_case(e, 0.48, 1.0, 1000); });
   }
   add(cases, "indentation/material/w0.25-nu0.499", "1000 vertices", kSmallCompressionLimit,
       [](const CaseContext&) { return run_indentation_case(kDefaultE, 0.499, 0.25, 1000); });
@@ -366,13 +367,13 @@ std::vector<Case> make_cases(bool include_self_tests) {
   // Shear flow over Ca (up to 4).
   for (double ca : {0.05, 0.2, 0.8, 1.6, 2.5, 4.0}) {
     add(
-        cases, "flow/ca/" + num(ca), "4 cells/R, 500 vertices, box 10x8x5 R, 8 strain units", kFlowLimit,
-        [=](const CaseContext&) { return run_flow_case(flow(ca)); }, ca == 0.2);
+        cases, "flow/ca/" + number_text(ca, 4), "4 cells/R, 500 vertices, box 10x8x5 R, 8 strain units",
+        kFlowLimit, [=](const CaseContext&) { return run_flow_case(flow(ca)); }, ca == 0.2);
   }
   // The same in a box long enough for the stretched cell (at 10 R it
   // outgrows the periodic box: a clean failure above).
   for (double ca : {2.5, 4.0}) {
-    add(cases, "flow/ca-long-box/" + num(ca), "box 24x8x5 R, 8 strain units", kFlowLimit,
+    add(cases, "flow/ca-long-box/" + number_text(ca, 4), "box 24x8x5 R, 8 strain units", kFlowLimit,
         [=](const CaseContext&) {
           scenes::ShearFlowParams p = flow(ca);
           p.numerics.box_x_radii = 24.0;
@@ -383,16 +384,16 @@ std::vector<Case> make_cases(bool include_self_tests) {
   // grows as 1 / Ca; with the default limit the stiffest are refused, with
   // the limit lifted (max_stiffness_ratio 100) the guards must catch them.
   for (double ca : {0.02, 0.01, 0.005, 0.003}) {
-    add(cases, "flow/stiffness/default-limit-ca" + num(ca), "default max_stiffness_ratio, 3 strain units",
-        kFlowLimit, [=](const CaseContext&) {
+    add(cases, "flow/stiffness/default-limit-ca" + number_text(ca, 4),
+        "default max_stiffness_ratio, 3 strain units", kFlowLimit, [=](const CaseContext&) {
           scenes::ShearFlowParams p = flow(ca);
           p.numerics.max_strain = 3.0;
           return run_flow_case(p);
         });
   }
   for (double ca : {0.005, 0.003, 0.001}) {
-    add(cases, "flow/stiffness/lifted-limit-ca" + num(ca), "max_stiffness_ratio 100, 2 strain units",
-        kFlowLimit, [=](const CaseContext&) {
+    add(cases, "flow/stiffness/lifted-limit-ca" + number_text(ca, 4),
+        "max_stiffness_ratio 100, 2 strain units", kFlowLimit, [=](const CaseContext&) {
           scenes::ShearFlowParams p = flow(ca);
           p.numerics.max_stiffness_ratio = 100.0;
           p.numerics.max_strain = 2.0;
@@ -402,16 +403,17 @@ std::vector<Case> make_cases(bool include_self_tests) {
   // The time step: dt = nu_lb dx^2 / nu with nu_lb = (tau - 1/2) / 3, and the
   // raised density sets Re_p (steps per strain ~ 1 / (Re nu_lb)).
   for (double tau : {0.55, 0.6, 2.0, 3.0}) {
-    add(cases, "flow/timestep/tau" + num(tau), "Ca 0.2, 3 strain units", kFlowLimit, [=](const CaseContext&) {
-      scenes::ShearFlowParams p = flow(0.2);
-      p.numerics.relaxation_time = tau;
-      p.numerics.max_strain = 3.0;
-      return run_flow_case(p);
-    });
+    add(cases, "flow/timestep/tau" + number_text(tau, 4), "Ca 0.2, 3 strain units", kFlowLimit,
+        [=](const CaseContext&) {
+          scenes::ShearFlowParams p = flow(0.2);
+          p.numerics.relaxation_time = tau;
+          p.numerics.max_strain = 3.0;
+          return run_flow_case(p);
+        });
   }
   for (double re : {0.01, 0.3, 0.5, 1.0}) {
-    add(cases, "flow/timestep/reynolds" + num(re), "Ca 0.2, target Re_p " + num(re), kFlowLimit,
-        [=](const CaseContext&) {
+    add(cases, "flow/timestep/reynolds" + number_text(re, 4), "Ca 0.2, target Re_p " + number_text(re, 4),
+        kFlowLimit, [=](const CaseContext&) {
           scenes::ShearFlowParams p = flow(0.2);
           p.numerics.target_reynolds_number = re;
           p.numerics.max_strain = re < 0.05 ? 0.5 : 3.0;
@@ -436,14 +438,15 @@ std::vector<Case> make_cases(bool include_self_tests) {
   // Very soft and very stiff cells, at fixed Ca (same dimensionless problem
   // unless the physical Reynolds number takes over) and at a fixed shear rate.
   for (double e : {1e3, 1e5}) {
-    add(cases, "flow/modulus/E" + num(e) + "-ca0.2", "fixed Ca 0.2", kFlowLimit, [=](const CaseContext&) {
-      scenes::ShearFlowParams p = flow(0.2);
-      p.cell.material.youngs_modulus_pa = e;
-      return run_flow_case(p);
-    });
+    add(cases, "flow/modulus/E" + number_text(e, 4) + "-ca0.2", "fixed Ca 0.2", kFlowLimit,
+        [=](const CaseContext&) {
+          scenes::ShearFlowParams p = flow(0.2);
+          p.cell.material.youngs_modulus_pa = e;
+          return run_flow_case(p);
+        });
   }
   for (double e : {1.0, 1e5}) {
-    add(cases, "flow/modulus/E" + num(e) + "-rate10", "fixed shear rate 10/s", kFlowLimit,
+    add(cases, "flow/modulus/E" + number_text(e, 4) + "-rate10", "fixed shear rate 10/s", kFlowLimit,
         [=](const CaseContext&) {
           scenes::ShearFlowParams p = flow(0.0);
           p.cell.material.youngs_modulus_pa = e;
@@ -466,11 +469,12 @@ std::vector<Case> make_cases(bool include_self_tests) {
   });
   // Poor meshes in flow.
   for (double ca : {0.2, 1.6}) {
-    add(cases, "flow/mesh/coarse200-ca" + num(ca), "200-vertex sphere", kFlowLimit, [=](const CaseContext&) {
-      scenes::ShearFlowParams p = flow(ca);
-      p.cell.target_vertex_count = 200;
-      return run_flow_case(p);
-    });
+    add(cases, "flow/mesh/coarse200-ca" + number_text(ca, 4), "200-vertex sphere", kFlowLimit,
+        [=](const CaseContext&) {
+          scenes::ShearFlowParams p = flow(ca);
+          p.cell.target_vertex_count = 200;
+          return run_flow_case(p);
+        });
   }
   add(cases, "flow/mesh/slivers-ca0.2", "500-vertex sphere with flattened tets (.msh)", kFlowLimit,
       [](const CaseContext& ctx) {
@@ -479,7 +483,7 @@ std::vector<Case> make_cases(bool include_self_tests) {
         if (!q.ok()) return failed_or_converged(q.status(), "writing the sliver mesh");
         scenes::ShearFlowParams p = flow(0.2);
         p.cell.mesh_file = path;
-        return run_flow_case(p, "min dihedral " + num(q->min_dihedral_deg) + " deg; ");
+        return run_flow_case(p, "min dihedral " + number_text(q->min_dihedral_deg, 4) + " deg; ");
       });
   add(cases, "flow/mesh/slivers-lifted-limit-ca0.2", "sliver mesh past the stiffness limit (ratio 100)",
       kFlowLimit, [](const CaseContext& ctx) {
@@ -489,7 +493,7 @@ std::vector<Case> make_cases(bool include_self_tests) {
         scenes::ShearFlowParams p = flow(0.2);
         p.cell.mesh_file = path;
         p.numerics.max_stiffness_ratio = 100.0;
-        return run_flow_case(p, "min dihedral " + num(q->min_dihedral_deg) + " deg; ");
+        return run_flow_case(p, "min dihedral " + number_text(q->min_dihedral_deg, 4) + " deg; ");
       });
   add(cases, "flow/resolution/cpr3-ca0.4", "3 cells per radius, box 8x6x4 R", kFlowLimit,
       [](const CaseContext&) {

@@ -20,6 +20,7 @@
 #include <sstream>
 #include <thread>
 
+#include "physics/core/violations.h"
 #include "physics/elastic/material.h"
 #include "physics/mesh/tet_geometry.h"
 
@@ -28,12 +29,6 @@ extern char** environ;
 namespace cellflow::stability {
 
 namespace {
-
-std::string num(double v) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.4g", v);
-  return buffer;
-}
 
 bool contains(std::string_view text, std::string_view part) {
   return text.find(part) != std::string_view::npos;
@@ -172,14 +167,16 @@ std::optional<std::string> check_compression(const scenes::CompressionParams& pa
   const elastic::Moduli moduli = elastic::moduli_from(params.cell.material);
   double previous_force = 0.0;
   for (const scenes::CurvePoint& p : curve) {
-    const std::string at = "point " + std::to_string(p.index) + " (deformation " + num(p.deformation) + ")";
+    const std::string at =
+        "point " + std::to_string(p.index) + " (deformation " + number_text(p.deformation, 4) + ")";
     for (double v : {p.force_n, p.hertz_force_n, p.volume_m3, p.elastic_energy_j, p.taylor_deformation,
                      p.semi_axes_m[0], p.semi_axes_m[1], p.semi_axes_m[2], p.residual}) {
       if (!std::isfinite(v)) return at + ": non-finite value";
     }
-    if (!(p.force_n > 0.0)) return at + ": force " + num(p.force_n) + " N not positive";
+    if (!(p.force_n > 0.0)) return at + ": force " + number_text(p.force_n, 4) + " N not positive";
     if (!(p.force_n > previous_force)) {
-      return at + ": force " + num(p.force_n) + " N not above the previous " + num(previous_force) + " N";
+      return at + ": force " + number_text(p.force_n, 4) + " N not above the previous " +
+             number_text(previous_force, 4) + " N";
     }
     previous_force = p.force_n;
     // Hertz grows as E R^2 eps^1.5; up to eps = 0.2 a ratio outside
@@ -187,10 +184,10 @@ std::optional<std::string> check_compression(const scenes::CompressionParams& pa
     // effect (beyond, the curve leaves Hertz by design: 40 times at 0.9).
     const double hertz_ratio = p.force_n / p.hertz_force_n;
     if (p.deformation <= kHertzCheckUpTo && !(hertz_ratio > 0.3 && hertz_ratio < 10.0)) {
-      return at + ": F / F_Hertz = " + num(hertz_ratio);
+      return at + ": F / F_Hertz = " + number_text(hertz_ratio, 4);
     }
     if (!(p.taylor_deformation >= 0.0 && p.taylor_deformation < 1.0)) {
-      return at + ": Taylor deformation " + num(p.taylor_deformation) + " outside [0, 1)";
+      return at + ": Taylor deformation " + number_text(p.taylor_deformation, 4) + " outside [0, 1)";
     }
     if (check.check_volume && check.initial_volume_m3 > 0.0) {
       const std::size_t k = static_cast<std::size_t>(p.index);
@@ -205,26 +202,28 @@ std::optional<std::string> check_compression(const scenes::CompressionParams& pa
                            1e-9 * check.initial_volume_m3;
       const double v0 = check.initial_volume_m3;
       if (!(measured <= predicted + slack)) {
-        return at + ": volume change " + num(measured / v0) + " V0 above the virial bound " +
-               num(predicted / v0) + " V0 of the plate force (force or volume wrong)";
+        return at + ": volume change " + number_text(measured / v0, 4) + " V0 above the virial bound " +
+               number_text(predicted / v0, 4) + " V0 of the plate force (force or volume wrong)";
       }
       if (e) {
         if (!(measured >= predicted - e->squared_deviation_m3 - slack)) {
-          return at + ": volume change " + num(measured / v0) + " V0 below the virial bound " +
-                 num((predicted - e->squared_deviation_m3) / v0) + " V0 (force or volume wrong)";
+          return at + ": volume change " + number_text(measured / v0, 4) + " V0 below the virial bound " +
+                 number_text((predicted - e->squared_deviation_m3) / v0, 4) + " V0 (force or volume wrong)";
         }
         if (!(e->crushed_fraction <= kMaxCrushedFraction)) {
-          return at + ": " + num(100.0 * e->crushed_fraction) +
-                 " % of the cell volume crushed below J = " + num(kCrushedJ) + " without inverting (min J " +
-                 num(e->min_j) + ", volume " + num(p.volume_m3 / v0) + " V0, uniform-J estimate " +
-                 num(1.0 + predicted / v0) +
+          return at + ": " + number_text(100.0 * e->crushed_fraction, 4) +
+                 " % of the cell volume crushed below J = " + number_text(kCrushedJ, 4) +
+                 " without inverting (min J " + number_text(e->min_j, 4) + ", volume " +
+                 number_text(p.volume_m3 / v0, 4) + " V0, uniform-J estimate " +
+                 number_text(1.0 + predicted / v0, 4) +
                  " V0): the volumetric energy kappa/2 (J-1)^2 of eq. 5 stays bounded as J -> 0";
         }
       }
       if (!(measured >= kMaxNonUniformity * predicted - slack)) {
-        return at + ": volume change " + num(measured / v0) + " V0 is " + num(measured / predicted) +
-               " times the uniform-J estimate " + num(predicted / v0) +
-               " V0 for nu = " + num(params.cell.material.poisson_ratio) + " (local collapse)";
+        return at + ": volume change " + number_text(measured / v0, 4) + " V0 is " +
+               number_text(measured / predicted, 4) + " times the uniform-J estimate " +
+               number_text(predicted / v0, 4) +
+               " V0 for nu = " + number_text(params.cell.material.poisson_ratio, 4) + " (local collapse)";
       }
     }
   }
@@ -234,13 +233,15 @@ std::optional<std::string> check_compression(const scenes::CompressionParams& pa
 std::optional<std::string> check_indentation(const scenes::QuasiStaticResult& result) {
   double previous_force = 0.0;
   for (const scenes::CurvePoint& p : result.curve) {
-    const std::string at = "point " + std::to_string(p.index) + " (deformation " + num(p.deformation) + ")";
+    const std::string at =
+        "point " + std::to_string(p.index) + " (deformation " + number_text(p.deformation, 4) + ")";
     for (double v : {p.force_n, p.hertz_force_n, p.volume_m3, p.elastic_energy_j, p.residual}) {
       if (!std::isfinite(v)) return at + ": non-finite value";
     }
-    if (!(p.force_n > 0.0)) return at + ": force " + num(p.force_n) + " N not positive";
+    if (!(p.force_n > 0.0)) return at + ": force " + number_text(p.force_n, 4) + " N not positive";
     if (!(p.force_n > previous_force)) {
-      return at + ": force " + num(p.force_n) + " N not above the previous " + num(previous_force) + " N";
+      return at + ": force " + number_text(p.force_n, 4) + " N not above the previous " +
+             number_text(previous_force, 4) + " N";
     }
     previous_force = p.force_n;
   }
@@ -251,25 +252,28 @@ std::optional<std::string> check_shear_flow(const scenes::ShearFlowResult& resul
   if (result.samples.empty()) return "no samples";
   const double v0 = result.samples.front().volume_m3;
   for (const scenes::ShearFlowSample& s : result.samples) {
-    const std::string at = "sample " + std::to_string(s.index) + " (strain " + num(s.strain_units) + ")";
+    const std::string at =
+        "sample " + std::to_string(s.index) + " (strain " + number_text(s.strain_units, 4) + ")";
     if (!(std::isfinite(s.taylor_deformation) && s.taylor_deformation >= 0.0 && s.taylor_deformation < 1.0)) {
-      return at + ": D = " + num(s.taylor_deformation) + " not finite in [0, 1)";
+      return at + ": D = " + number_text(s.taylor_deformation, 4) + " not finite in [0, 1)";
     }
     if (!(std::isfinite(s.volume_m3) && s.volume_m3 > 0.0 && std::abs(s.volume_m3 / v0 - 1.0) < 0.3)) {
-      return at + ": volume " + num(s.volume_m3 / v0) + " V0";
+      return at + ": volume " + number_text(s.volume_m3 / v0, 4) + " V0";
     }
     if (!std::isfinite(s.inclination_deg) || !std::isfinite(s.net_strain)) {
       return at + ": non-finite inclination or strain";
     }
   }
   const double d = result.steady_taylor_deformation;
-  if (!(std::isfinite(d) && d >= 0.0 && d < 1.0)) return "steady D = " + num(d) + " not finite in [0, 1)";
+  if (!(std::isfinite(d) && d >= 0.0 && d < 1.0))
+    return "steady D = " + number_text(d, 4) + " not finite in [0, 1)";
   const double ca = result.setup.capillary_number;
   if (result.stop == scenes::ShearFlowStop::kSteady && ca <= 0.2) {
     // Roscoe's small-Ca limit D = (5/4) Ca; coarse lattices overshoot by
     // tens of percent, never by a factor 2.
     const double ratio = d / scenes::small_ca_taylor_deformation(ca);
-    if (!(ratio > 0.5 && ratio < 2.0)) return "steady D / (5/4 Ca) = " + num(ratio) + " at Ca = " + num(ca);
+    if (!(ratio > 0.5 && ratio < 2.0))
+      return "steady D / (5/4 Ca) = " + number_text(ratio, 4) + " at Ca = " + number_text(ca, 4);
   }
   return std::nullopt;
 }
@@ -331,7 +335,7 @@ CaseRecord run_case_in_child(const std::string& executable, const Case& c, const
 
   if (killed) {
     record.outcome = Outcome::kHang;
-    record.cause = "no result within " + num(time_limit_s) + " s";
+    record.cause = "no result within " + number_text(time_limit_s, 4) + " s";
     record.detail = tail_of_file(log_file, 300);
     return record;
   }
@@ -388,7 +392,7 @@ std::string markdown_report(const std::vector<CaseRecord>& records, double total
   for (const CaseRecord& r : records) counts[std::string(outcome_name(r.outcome))]++;
   std::ostringstream md;
   md << "# Stability matrix\n\n";
-  md << records.size() << " cases, total wall time " << num(total_wall_s) << " s:";
+  md << records.size() << " cases, total wall time " << number_text(total_wall_s, 4) << " s:";
   for (const char* name : {"CONVERGED", "FAILED", "HANG", "CRASH", "WRONG"}) {
     md << " " << name << " " << counts[name];
   }
@@ -397,7 +401,7 @@ std::string markdown_report(const std::vector<CaseRecord>& records, double total
   md << "| case | outcome | cause | time (s) | detail |\n|---|---|---|---:|---|\n";
   for (const CaseRecord& r : records) {
     md << "| " << r.name << (r.anchor ? " (anchor)" : "") << " | " << outcome_name(r.outcome) << " | "
-       << one_line(r.cause) << " | " << num(r.wall_s) << " | " << one_line(r.detail) << " |\n";
+       << one_line(r.cause) << " | " << number_text(r.wall_s, 4) << " | " << one_line(r.detail) << " |\n";
   }
   return md.str();
 }
@@ -414,8 +418,8 @@ std::string csv_report(const std::vector<CaseRecord>& records) {
   std::ostringstream csv;
   csv << "case,outcome,cause,wall_s,anchor,detail\n";
   for (const CaseRecord& r : records) {
-    csv << quoted(r.name) << "," << outcome_name(r.outcome) << "," << quoted(r.cause) << "," << num(r.wall_s)
-        << "," << (r.anchor ? 1 : 0) << "," << quoted(one_line(r.detail)) << "\n";
+    csv << quoted(r.name) << "," << outcome_name(r.outcome) << "," << quoted(r.cause) << ","
+        << number_text(r.wall_s, 4) << "," << (r.anchor ? 1 : 0) << "," << quoted(one_line(r.detail)) << "\n";
   }
   return csv.str();
 }

@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "physics/core/violations.h"
 #include "physics/mesh/tet_geometry.h"
 
 #define TETLIBRARY  // TetGen throws an int on failure instead of calling exit()
@@ -419,18 +420,12 @@ StatusOr<TetMesh> tetrahedralize_spheres(const std::vector<SurfaceMesh>& surface
 }
 
 // Short decimal form for messages: 8e-06 rather than to_string's 0.000008.
-std::string format_number(double v) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.6g", v);
-  return buffer;
-}
-
 Status validate(const SphereMeshOptions& o) {
   // Written so that NaN fails every comparison and lands in the error.
   if (!(o.radius_m >= kMinSphereRadiusM && o.radius_m <= kMaxSphereRadiusM)) {
-    return invalid_argument("radius_m must be in [" + format_number(kMinSphereRadiusM) + ", " +
-                            format_number(kMaxSphereRadiusM) + "] m (0.1 um to 1 cm) (got " +
-                            format_number(o.radius_m) + ")");
+    return invalid_argument("radius_m must be in [" + number_text(kMinSphereRadiusM, 6) + ", " +
+                            number_text(kMaxSphereRadiusM, 6) + "] m (0.1 um to 1 cm) (got " +
+                            number_text(o.radius_m, 6) + ")");
   }
   if (o.target_vertex_count < kMinVertexCount || o.target_vertex_count > kMaxVertexCount) {
     return invalid_argument("target_vertex_count must be in [" + std::to_string(kMinVertexCount) + ", " +
@@ -439,14 +434,15 @@ Status validate(const SphereMeshOptions& o) {
   }
   if (o.nucleus_radius_m != 0.0 && !(o.nucleus_radius_m > 0.0 && o.nucleus_radius_m < o.radius_m)) {
     return invalid_argument("nucleus_radius_m must be 0 (no nucleus) or in (0, radius_m) = (0, " +
-                            format_number(o.radius_m) + ") (got " + format_number(o.nucleus_radius_m) + ")");
+                            number_text(o.radius_m, 6) + ") (got " + number_text(o.nucleus_radius_m, 6) +
+                            ")");
   }
   if (!(o.max_radius_edge_ratio >= 1.1 && o.max_radius_edge_ratio <= 10.0)) {
     return invalid_argument("max_radius_edge_ratio must be in [1.1, 10] (got " +
-                            format_number(o.max_radius_edge_ratio) + ")");
+                            number_text(o.max_radius_edge_ratio, 6) + ")");
   }
   if (!(o.min_dihedral_deg >= 0.0 && o.min_dihedral_deg <= 18.0)) {
-    return invalid_argument("min_dihedral_deg must be in [0, 18] (got " + format_number(o.min_dihedral_deg) +
+    return invalid_argument("min_dihedral_deg must be in [0, 18] (got " + number_text(o.min_dihedral_deg, 6) +
                             ")");
   }
   return Status::ok_status();
@@ -507,11 +503,11 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
     // resolved and makes TetGen grade the mesh far past the vertex target.
     if (nucleus_radius < 0.5 * spacing || radius - nucleus_radius < 0.5 * spacing) {
       return invalid_argument("nucleus_radius_m must be in [h/2, radius_m - h/2] = [" +
-                              format_number(0.5 * spacing * scale) + ", " +
-                              format_number((radius - 0.5 * spacing) * scale) + "] for target_vertex_count " +
-                              std::to_string(options.target_vertex_count) +
-                              " (mesh spacing h = " + format_number(spacing * scale) + "); got " +
-                              format_number(options.nucleus_radius_m));
+                              number_text(0.5 * spacing * scale, 6) + ", " +
+                              number_text((radius - 0.5 * spacing) * scale, 6) +
+                              "] for target_vertex_count " + std::to_string(options.target_vertex_count) +
+                              " (mesh spacing h = " + number_text(spacing * scale, 6) + "); got " +
+                              number_text(options.nucleus_radius_m, 6));
     }
     const int nucleus_frequency =
         std::max(2, static_cast<int>(std::lround(frequency * nucleus_radius / radius)));

@@ -10,7 +10,7 @@ namespace {
 
 // Documented defaults for unset optional fields (see proto/cellflow/v1/*.proto);
 // those of the cell are in spec/cell_spec.h. The cell's default mesh size is
-// scenes::CellParams' own (3000 vertices).
+// cell::CellParams' own (3000 vertices).
 constexpr int kDefaultLoadPoints = 40;
 
 scenes::QuasiStaticOptions to_numerics(const v1::QuasiStaticNumerics& n) {
@@ -38,7 +38,7 @@ StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec) {
   if (!spec.has_cell()) return missing("compression.cell");
   if (!spec.cell().has_material()) return missing("compression.cell.material");
   scenes::CompressionParams params;
-  params.cell = to_cell(spec.cell(), scenes::CellParams{});
+  params.cell = to_cell(spec.cell(), cell::CellParams{});
   params.max_deformation = spec.max_deformation();
   params.load_points = spec.has_load_points() ? spec.load_points() : kDefaultLoadPoints;
   params.numerics = to_numerics(spec.numerics());
@@ -50,7 +50,7 @@ StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
   if (!spec.has_cell()) return missing("indentation.cell");
   if (!spec.cell().has_material()) return missing("indentation.cell.material");
   scenes::IndentationParams params;
-  params.cell = to_cell(spec.cell(), scenes::CellParams{});
+  params.cell = to_cell(spec.cell(), cell::CellParams{});
   params.probe_radius_m = spec.probe_radius_m();
   params.max_indentation_m = spec.max_indentation_m();
   params.load_points = spec.has_load_points() ? spec.load_points() : kDefaultLoadPoints;

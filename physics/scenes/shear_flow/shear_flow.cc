@@ -10,13 +10,14 @@
 #include <utility>
 #include <vector>
 
+#include "physics/cell/cell_body.h"
+#include "physics/coupling/immersed_cell.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/elastic/material.h"
 #include "physics/lb/fluid.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
-#include "physics/coupling/immersed_cell.h"
 #include "physics/units/units.h"
 
 namespace cellflow::scenes {
@@ -660,28 +661,16 @@ ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCal
   const double radius = params.cell.radius_m;
 
   // The cell: mesh centred on its volume centroid, and its elastic body.
-  StatusOr<mesh::TetMesh> made = build_cell_mesh(params.cell, prefix + "cell.");
-  if (!made.ok()) {
-    result.status = made.status();
+  StatusOr<cell::CellBody> built =
+      cell::build_cell_body(params.cell, n.volumetric, prefix + "cell.", cell::Centring::kVolumeCentroid);
+  if (!built.ok()) {
+    result.status = built.status();
     return result;
   }
-  run.mesh = std::move(*made);
-  if (run.mesh.on_surface.size() != run.mesh.num_vertices()) mesh::mark_surface_vertices(run.mesh);
-  {
-    const observables::Shape reference = observables::measure_shape(run.mesh, run.mesh.positions_m.data());
-    for (std::size_t v = 0; v < run.mesh.num_vertices(); ++v) {
-      for (int d = 0; d < 3; ++d) run.mesh.positions_m[3 * v + d] -= reference.centroid_m[d];
-    }
-    result.reference_taylor_deformation = reference.taylor_deformation;
-  }
-  const elastic::Material materials[2] = {
-      params.cell.material, params.cell.nucleus ? params.cell.nucleus->material : params.cell.material};
-  StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(run.mesh, materials, n.volumetric);
-  if (!body.ok()) {
-    result.status = Status(body.status().code(), prefix + "cell: " + body.status().message());
-    return result;
-  }
-  run.body = std::move(*body);
+  result.reference_taylor_deformation = built->reference_taylor_deformation;
+  run.mesh = std::move(built->mesh);
+  run.body = std::move(built->body);
+  const std::array<elastic::Material, 2>& materials = built->materials;
   const std::size_t nv = run.mesh.num_vertices();
   const mesh::MeshQuality quality = mesh::mesh_quality(run.mesh);
   result.mesh_spacing_over_dx = quality.mean_edge_length_m / u.dx_m();

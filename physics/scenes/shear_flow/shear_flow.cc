@@ -189,7 +189,8 @@ struct Run {
   Plan plan;
   mesh::TetMesh mesh;
   elastic::ElasticBody body;
-  ImmersedCell cell;
+  // The immersed cells: one, at the box centre (no cell-cell contact is built).
+  coupling::ImmersedCells cells;
   std::vector<double> x_si;             // box coordinates in metres, at samples
   std::vector<double> last_good_x_lb;   // at the last sample
   std::vector<int> tank_vertices;       // surface vertices near z = 0
@@ -203,7 +204,7 @@ struct Run {
 
 void to_si(Run& run) {
   const double dx = run.plan.units.dx_m();
-  const std::vector<double>& x = run.cell.positions_lattice;
+  const std::vector<double>& x = run.cells[0].positions_lattice;
   for (std::size_t i = 0; i < x.size(); ++i) run.x_si[i] = x[i] * dx;
 }
 
@@ -364,7 +365,8 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
   // costs more than the work (bench/shear_flow: 1000 vertices, 0.4 ms serial).
   const int coupling_threads = run.mesh.num_vertices() >= kParallelVertices ? threads : 1;
   const double dx = run.plan.units.dx_m();
-  ImmersedCell& cell = run.cell;
+  coupling::ImmersedCells& cells = run.cells;
+  const coupling::ImmersedCell& cell = cells[0];  // the cell the observables follow
 
   const std::int64_t sample_steps =
       std::max<std::int64_t>(1, std::llround(n.sample_every_strain * setup.steps_per_strain));
@@ -416,23 +418,26 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
     }
     // Elastic forces at the vertices.
     const auto t0 = Clock::now();
-    const elastic::ElasticEvaluation eval = compute_elastic_forces(cell, run.body, coupling_threads);
-    if (eval.first_inverted_tet >= 0) {
-      fail(step, "tetrahedron " + std::to_string(eval.first_inverted_tet) +
-                     " inverted (J <= 0); the explicit update is unstable or the deformation too large");
-      return;
+    const std::vector<elastic::ElasticEvaluation> evals =
+        coupling::compute_elastic_forces(cells, coupling_threads);
+    for (const elastic::ElasticEvaluation& eval : evals) {
+      if (eval.first_inverted_tet >= 0) {
+        fail(step, "tetrahedron " + std::to_string(eval.first_inverted_tet) +
+                       " inverted (J <= 0); the explicit update is unstable or the deformation too large");
+        return;
+      }
+      if (!(eval.energy_j <= run.energy_limit_j)) {
+        fail(step, "elastic energy " + num(eval.energy_j) + " J exceeds " + num(kEnergyBlowUp) +
+                       " mu V0 = " + num(run.energy_limit_j) + " J (blow-up or NaN)");
+        return;
+      }
     }
-    if (!(eval.energy_j <= run.energy_limit_j)) {
-      fail(step, "elastic energy " + num(eval.energy_j) + " J exceeds " + num(kEnergyBlowUp) +
-                     " mu V0 = " + num(run.energy_limit_j) + " J (blow-up or NaN)");
-      return;
-    }
-    run.last_energy_j = eval.energy_j;
+    run.last_energy_j = evals[0].energy_j;
     const auto t1 = Clock::now();
     result.elastic_s += std::chrono::duration<double>(t1 - t0).count();
 
     // Spread onto the lattice (only the nodes near the cell are cleared).
-    spread_cell_forces(cell, fluid, kernel, coupling_threads);
+    coupling::spread_forces(cells, fluid, kernel, coupling_threads);
     const auto t2 = Clock::now();
     result.coupling_s += std::chrono::duration<double>(t2 - t1).count();
 
@@ -442,32 +447,36 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
     result.lattice_s += std::chrono::duration<double>(t3 - t2).count();
 
     // Interpolate u(t) at the vertices and move them: X += U dt.
-    const AdvectReport moved = advect_cell(cell, fluid, kernel, coupling_threads);
+    const std::vector<coupling::AdvectReport> reports =
+        coupling::advect_cells(cells, fluid, kernel, coupling_threads);
     ++step;
     result.coupling_s += seconds_since(t3);
-    if (!std::isfinite(moved.max_speed_lattice)) {
-      fail(step, "vertex velocity is NaN");
-      return;
-    }
-    if (moved.max_speed_lattice > kRunawaySpeedLattice) {
-      fail(step, "vertex speed " + num(moved.max_speed_lattice) + " (lattice units) exceeds " +
-                     num(kRunawaySpeedLattice) + " (wall speed " + num(setup.mach_number / std::sqrt(3.0)) +
-                     "): the explicit coupling is unstable; lower shear_flow.numerics.max_stiffness_ratio, "
-                     "raise shear_flow.numerics.cells_per_radius or lower "
-                     "shear_flow.numerics.target_reynolds_number");
-      return;
-    }
-    if (moved.lo[1] < wall_margin || moved.hi[1] > fluid.ny() - wall_margin) {
-      fail(step, "the cell reached the wall region (extent in y " + num(moved.lo[1] * dx) + " .. " +
-                     num(moved.hi[1] * dx) + " m, walls at 0 and " + num(setup.box_m[1]) +
-                     " m); enlarge shear_flow.numerics.box_y_radii or lower the capillary number");
-      return;
-    }
-    if (moved.hi[0] - moved.lo[0] > fluid.nx() - width || moved.hi[2] - moved.lo[2] > fluid.nz() - width) {
-      fail(step, "the cell is longer than the periodic box (extent " + num((moved.hi[0] - moved.lo[0]) * dx) +
-                     " m in x, " + num((moved.hi[2] - moved.lo[2]) * dx) +
-                     " m in z); enlarge shear_flow.numerics.box_x_radii / box_z_radii");
-      return;
+    for (const coupling::AdvectReport& moved : reports) {
+      if (!std::isfinite(moved.max_speed_lattice)) {
+        fail(step, "vertex velocity is NaN");
+        return;
+      }
+      if (moved.max_speed_lattice > kRunawaySpeedLattice) {
+        fail(step, "vertex speed " + num(moved.max_speed_lattice) + " (lattice units) exceeds " +
+                       num(kRunawaySpeedLattice) + " (wall speed " + num(setup.mach_number / std::sqrt(3.0)) +
+                       "): the explicit coupling is unstable; lower shear_flow.numerics.max_stiffness_ratio, "
+                       "raise shear_flow.numerics.cells_per_radius or lower "
+                       "shear_flow.numerics.target_reynolds_number");
+        return;
+      }
+      if (moved.lo[1] < wall_margin || moved.hi[1] > fluid.ny() - wall_margin) {
+        fail(step, "the cell reached the wall region (extent in y " + num(moved.lo[1] * dx) + " .. " +
+                       num(moved.hi[1] * dx) + " m, walls at 0 and " + num(setup.box_m[1]) +
+                       " m); enlarge shear_flow.numerics.box_y_radii or lower the capillary number");
+        return;
+      }
+      if (moved.hi[0] - moved.lo[0] > fluid.nx() - width || moved.hi[2] - moved.lo[2] > fluid.nz() - width) {
+        fail(step, "the cell is longer than the periodic box (extent " +
+                       num((moved.hi[0] - moved.lo[0]) * dx) + " m in x, " +
+                       num((moved.hi[2] - moved.lo[2]) * dx) +
+                       " m in z); enlarge shear_flow.numerics.box_x_radii / box_z_radii");
+        return;
+      }
     }
 
     if (step % sample_steps == 0) {
@@ -751,7 +760,7 @@ ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCal
 
   // Vertices at the box centre (lattice units).
   const double centre[3] = {0.5 * setup.nx, 0.5 * setup.ny, 0.5 * setup.nz};
-  run.cell = make_immersed_cell(run.mesh, u, centre);
+  coupling::add_cell(run.cells, run.mesh, run.body, u, centre);
   run.x_si.resize(3 * nv);
   for (std::size_t v = 0; v < nv; ++v) {
     if (run.mesh.on_surface[v] && std::abs(run.mesh.positions_m[3 * v + 2]) < kTankTreadBand * radius) {

@@ -52,8 +52,8 @@ struct MeshInfo {
   double default_stiffness_n_per_m = 0.0;
 };
 
-scenes::CellParams issue_cell(int target_vertices) {
-  scenes::CellParams cell;
+cell::CellParams issue_cell(int target_vertices) {
+  cell::CellParams cell;
   cell.radius_m = 8.6e-6;
   cell.material = {.youngs_modulus_pa = 150.0, .poisson_ratio = 0.48, .mooney_rivlin_w = 0.5};
   cell.target_vertex_count = target_vertices;
@@ -68,8 +68,8 @@ class Runner {
     auto it = meshes_.find(target);
     if (it != meshes_.end()) return it->second;
     MeshInfo info;
-    const scenes::CellParams cell = issue_cell(target);
-    auto m = scenes::build_cell_mesh(cell);
+    const cell::CellParams cell = issue_cell(target);
+    auto m = cell::build_cell_mesh(cell);
     if (m.ok()) {
       const mesh::MeshQuality q = mesh::mesh_quality(*m);
       info.vertices = static_cast<int>(q.num_vertices);

@@ -4,7 +4,7 @@
 //    lattice-Boltzmann step (Google Benchmark), for the default cell and box:
 //      BM_LatticeStep/threads   lb::collide_stream on the default lattice
 //      BM_ElasticForces         compute_elastic_forces (default mesh)
-//      BM_SpreadForces          spread_cell_forces (local clear + spread)
+//      BM_SpreadForces          spread_forces (local clear + spread)
 //      BM_AdvectCell            advect_cell (interpolate + move)
 //    followed by a Markdown table of the per-step split (medians of timed
 //    blocks, the kernels as the scene calls them: coupling serial, lattice
@@ -33,10 +33,10 @@
 #include <string>
 #include <vector>
 
+#include "physics/coupling/immersed_cell.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/lb/fluid.h"
 #include "physics/mesh/sphere_mesh.h"
-#include "physics/coupling/immersed_cell.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/units/units.h"
 
@@ -80,7 +80,7 @@ struct Coupled {
   mesh::TetMesh mesh;
   elastic::ElasticBody body;
   std::unique_ptr<lb::Fluid> fluid;
-  ImmersedCell cell;
+  coupling::ImmersedCells cells;  // one cell
 };
 
 Coupled& coupled() {
@@ -122,10 +122,10 @@ Coupled& coupled() {
   c->fluid = std::make_unique<lb::Fluid>(lb::make_fluid(fp).value());
   lb::update_velocity_field(*c->fluid);
   const double centre[3] = {0.5 * fp.nx, 0.5 * fp.ny, 0.5 * fp.nz};
-  c->cell = make_immersed_cell(c->mesh, u, centre);
+  coupling::add_cell(c->cells, c->mesh, c->body, u, centre);
   // A deformed cell (as in a run): stretch along the extensional axis.
   for (std::size_t v = 0; v < c->mesh.num_vertices(); ++v) {
-    double* x = &c->cell.positions_lattice[3 * v];
+    double* x = &c->cells[0].positions_lattice[3 * v];
     const double r[2] = {x[0] - centre[0], x[1] - centre[1]};
     x[0] = centre[0] + 1.1 * r[0] + 0.1 * r[1];
     x[1] = centre[1] + 0.1 * r[0] + 0.92 * r[1];
@@ -147,7 +147,7 @@ BENCHMARK(BM_LatticeStep)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->UseRea
 
 void BM_ElasticForces(benchmark::State& state) {
   Coupled& c = coupled();
-  for (auto _ : state) benchmark::DoNotOptimize(compute_elastic_forces(c.cell, c.body, 1));
+  for (auto _ : state) benchmark::DoNotOptimize(coupling::compute_elastic_forces(c.cells[0], 1));
   state.counters["vertices"] = static_cast<double>(c.mesh.num_vertices());
   state.counters["tets"] = static_cast<double>(c.mesh.num_tets());
 }
@@ -155,18 +155,18 @@ BENCHMARK(BM_ElasticForces)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 void BM_SpreadForces(benchmark::State& state) {
   Coupled& c = coupled();
-  compute_elastic_forces(c.cell, c.body, 1);
-  for (auto _ : state) spread_cell_forces(c.cell, *c.fluid, options().kernel, 1);
+  coupling::compute_elastic_forces(c.cells[0], 1);
+  for (auto _ : state) coupling::spread_forces(c.cells, *c.fluid, options().kernel, 1);
 }
 BENCHMARK(BM_SpreadForces)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 void BM_AdvectCell(benchmark::State& state) {
   Coupled& c = coupled();
-  const std::vector<double> start = c.cell.positions_lattice;
+  const std::vector<double> start = c.cells[0].positions_lattice;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(advect_cell(c.cell, *c.fluid, options().kernel, 1));
+    benchmark::DoNotOptimize(coupling::advect_cell(c.cells[0], *c.fluid, options().kernel, 1));
     state.PauseTiming();
-    c.cell.positions_lattice = start;
+    c.cells[0].positions_lattice = start;
     state.ResumeTiming();
   }
 }
@@ -187,15 +187,15 @@ double median_seconds(F&& f, int blocks, int steps) {
 
 void print_coupling_table() {
   Coupled& c = coupled();
-  const std::vector<double> start = c.cell.positions_lattice;
+  const std::vector<double> start = c.cells[0].positions_lattice;
   const double lattice = median_seconds([&] { lb::collide_stream(*c.fluid); }, 7, 20);
-  const double elastic = median_seconds([&] { compute_elastic_forces(c.cell, c.body, 1); }, 7, 50);
+  const double elastic = median_seconds([&] { coupling::compute_elastic_forces(c.cells[0], 1); }, 7, 50);
   const double spread =
-      median_seconds([&] { spread_cell_forces(c.cell, *c.fluid, options().kernel, 1); }, 7, 50);
+      median_seconds([&] { coupling::spread_forces(c.cells, *c.fluid, options().kernel, 1); }, 7, 50);
   const double advect = median_seconds(
       [&] {
-        advect_cell(c.cell, *c.fluid, options().kernel, 1);
-        c.cell.positions_lattice = start;
+        coupling::advect_cell(c.cells[0], *c.fluid, options().kernel, 1);
+        c.cells[0].positions_lattice = start;
       },
       7, 50);
   const double coupling = elastic + spread + advect;

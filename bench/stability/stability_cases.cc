@@ -351,7 +351,7 @@ std::vector<Case> make_cases(bool include_self_tests) {
   add(cases, "compression/nucleus/stiff10x", "nucleus radius 0.5 R, E x 10, 1000 vertices, deformation 0.9",
       kSmallCompressionLimit, [](const CaseContext&) {
         scenes::CompressionParams p = compression(kDefaultE, 0.48, 0.5, 1000, 0.9, 30);
-        p.cell.nucleus = scenes::NucleusParams{
+        p.cell.nucleus = cell::NucleusParams{
             .radius_m = 0.5 * kCompressionRadius,
             .material = {.youngs_modulus_pa = 10 * kDefaultE, .poisson_ratio = 0.48, .mooney_rivlin_w = 0.5}};
         return run_compression_case(p);

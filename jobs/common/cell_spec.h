@@ -1,4 +1,4 @@
-// CellSpec and MaterialSpec (proto/cellflow/v1/cell.proto) -> scenes::CellParams,
+// CellSpec and MaterialSpec (proto/cellflow/v1/cell.proto) -> cell::CellParams,
 // shared by the spec conversion of every scene. Unset optional fields take the
 // defaults of the physics structs (declared there once; the proto comments
 // quote them); the scene passes its own default cell (its default mesh size
@@ -21,11 +21,11 @@ inline elastic::Material to_material(const v1::MaterialSpec& m) {
 }
 
 // The fields of `c` over `cell`, which holds the scene's defaults.
-inline scenes::CellParams to_cell(const v1::CellSpec& c, scenes::CellParams cell) {
+inline cell::CellParams to_cell(const v1::CellSpec& c, cell::CellParams cell) {
   cell.radius_m = c.radius_m();
   cell.material = to_material(c.material());
   if (c.has_nucleus()) {
-    cell.nucleus = scenes::NucleusParams{c.nucleus().radius_m(), to_material(c.nucleus().material())};
+    cell.nucleus = cell::NucleusParams{c.nucleus().radius_m(), to_material(c.nucleus().material())};
   }
   if (c.has_target_vertex_count()) cell.target_vertex_count = c.target_vertex_count();
   cell.mesh_file = c.mesh_file();

@@ -31,7 +31,7 @@ void ResultRecorder::write_connectivity(const mesh::TetMesh& mesh) {
   keep(writer_->write_tetrahedra("cell", mesh.tets, region));
 }
 
-std::int64_t cell_vertex_bound(const scenes::CellParams& cell) {
+std::int64_t cell_vertex_bound(const cell::CellParams& cell) {
   if (!cell.mesh_file.empty()) {
     std::error_code error;
     const auto size = std::filesystem::file_size(cell.mesh_file, error);

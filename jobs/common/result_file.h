@@ -50,7 +50,7 @@ inline constexpr std::int64_t kBytesPerVertex = 16LL << 10;
 // Vertices the cell's mesh will have: the target count, or a bound from a
 // mesh file's size (a Gmsh ASCII node line is at least ~30 bytes and
 // tetrahedron lines outnumber node lines: size / 30 bounds the count).
-std::int64_t cell_vertex_bound(const scenes::CellParams& cell);
+std::int64_t cell_vertex_bound(const cell::CellParams& cell);
 
 // A double with 17 significant digits, so that CSV values read back exactly.
 std::string csv_number(double value);

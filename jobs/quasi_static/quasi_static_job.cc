@@ -216,7 +216,7 @@ StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec) {
   if (!spec.has_cell()) return missing("compression.cell");
   if (!spec.cell().has_material()) return missing("compression.cell.material");
   scenes::CompressionParams params;
-  params.cell = to_cell(spec.cell(), scenes::CellParams{});
+  params.cell = to_cell(spec.cell(), cell::CellParams{});
   params.max_deformation = spec.max_deformation();
   if (spec.has_load_points()) params.load_points = spec.load_points();  // else the struct's default
   params.numerics = to_numerics(spec.numerics());
@@ -228,7 +228,7 @@ StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
   if (!spec.has_cell()) return missing("indentation.cell");
   if (!spec.cell().has_material()) return missing("indentation.cell.material");
   scenes::IndentationParams params;
-  params.cell = to_cell(spec.cell(), scenes::CellParams{});
+  params.cell = to_cell(spec.cell(), cell::CellParams{});
   params.probe_radius_m = spec.probe_radius_m();
   params.max_indentation_m = spec.max_indentation_m();
   if (spec.has_load_points()) params.load_points = spec.load_points();  // else the struct's default

@@ -7,7 +7,7 @@
 
 #include "physics/mesh/sphere_mesh.h"
 
-namespace cellflow::scenes {
+namespace cellflow::cell {
 
 namespace {
 
@@ -100,4 +100,4 @@ StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view
   return read;
 }
 
-}  // namespace cellflow::scenes
+}  // namespace cellflow::cell

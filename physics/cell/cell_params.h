@@ -10,7 +10,7 @@
 #include "physics/elastic/material.h"
 #include "physics/mesh/tet_mesh.h"
 
-namespace cellflow::scenes {
+namespace cellflow::cell {
 
 struct NucleusParams {
   double radius_m = 0.0;  // concentric; 0 < radius_m < cell radius
@@ -37,4 +37,4 @@ Status validate(const CellParams& cell, std::string_view field_prefix);
 // field path `field_prefix` + "mesh_file" prepended.
 StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix = "cell.");
 
-}  // namespace cellflow::scenes
+}  // namespace cellflow::cell

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-namespace cellflow::scenes {
+namespace cellflow::coupling {
 
 namespace {
 
@@ -54,9 +54,12 @@ void zero_force_box(lb::Fluid& fluid, const NodeBox& box) {
 
 }  // namespace
 
-ImmersedCell make_immersed_cell(const mesh::TetMesh& mesh, const units::Units& units,
-                                const double origin_lattice[3]) {
+// X = origin + x / dx
+ImmersedCell make_immersed_cell(const mesh::TetMesh& mesh, const elastic::ElasticBody& body,
+                                const units::Units& units, const double origin_lattice[3]) {
   ImmersedCell cell;
+  cell.mesh = &mesh;
+  cell.body = &body;
   const std::size_t n = 3 * mesh.num_vertices();
   cell.spacing_m = units.dx_m();
   cell.newton_to_lattice = units.force_to_lattice(1.0);
@@ -72,8 +75,14 @@ ImmersedCell make_immersed_cell(const mesh::TetMesh& mesh, const units::Units& u
   return cell;
 }
 
-elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, const elastic::ElasticBody& body,
-                                                  int threads) {
+ImmersedCell& add_cell(ImmersedCells& cells, const mesh::TetMesh& mesh, const elastic::ElasticBody& body,
+                       const units::Units& units, const double origin_lattice[3]) {
+  cells.cells.push_back(make_immersed_cell(mesh, body, units, origin_lattice));
+  return cells.cells.back();
+}
+
+// f = -dW/dx   (paper eq. 9-10)
+elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, int threads) {
   const std::size_t n = cell.positions_lattice.size();
   const double dx = cell.spacing_m;
   for (std::size_t i = 0; i < n; ++i) {
@@ -82,28 +91,46 @@ elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, const elas
   }
   std::fill(cell.forces_n.begin(), cell.forces_n.end(), 0.0);
   const elastic::ElasticEvaluation eval =
-      elastic::add_elastic_forces(body, cell.positions_m.data(), cell.forces_n.data(), threads);
+      elastic::add_elastic_forces(*cell.body, cell.positions_m.data(), cell.forces_n.data(), threads);
   // F_lb = F dt^2 / (m dx)
   for (std::size_t i = 0; i < n; ++i) cell.forces_lattice[i] = cell.forces_n[i] * cell.newton_to_lattice;
   return eval;
 }
 
-void spread_cell_forces(ImmersedCell& cell, lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
+std::vector<elastic::ElasticEvaluation> compute_elastic_forces(ImmersedCells& cells, int threads) {
+  std::vector<elastic::ElasticEvaluation> evaluations;
+  evaluations.reserve(cells.size());
+  for (ImmersedCell& cell : cells.cells) evaluations.push_back(compute_elastic_forces(cell, threads));
+  return evaluations;
+}
+
+namespace {
+
+// Zeroes the union of the previous supports, then spreads each cell in order.
+template <class T>
+void spread_all(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
   const ibm::Grid grid = ibm::grid_of(fluid);
   const int width = ibm::kernel_width(kernel);
-  if (fluid.params().precision == lb::Precision::kFloat) {
-    zero_force_box<float>(fluid, cell.last_support);
+  for (const ImmersedCell& cell : cells.cells) zero_force_box<T>(fluid, cell.last_support);
+  for (ImmersedCell& cell : cells.cells) {
     cell.last_support = support_of(cell.positions_lattice, width);
-    ibm::spread<float>(kernel, grid, cell.positions_lattice, cell.forces_lattice, fluid.force_field<float>(),
-                       threads);
-  } else {
-    zero_force_box<double>(fluid, cell.last_support);
-    cell.last_support = support_of(cell.positions_lattice, width);
-    ibm::spread<double>(kernel, grid, cell.positions_lattice, cell.forces_lattice,
-                        fluid.force_field<double>(), threads);
+    ibm::spread<T>(kernel, grid, cell.positions_lattice, cell.forces_lattice, fluid.force_field<T>(),
+                   threads);
   }
 }
 
+}  // namespace
+
+// F(x) = sum_cells sum_p f_p delta_h(x - X_p)   (spreading, paper section 7)
+void spread_forces(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
+  if (fluid.params().precision == lb::Precision::kFloat) {
+    spread_all<float>(cells, fluid, kernel, threads);
+  } else {
+    spread_all<double>(cells, fluid, kernel, threads);
+  }
+}
+
+// U_p = sum_x u(x) delta_h(x - X_p);  X_p += U_p dt   (interpolation, paper section 7)
 AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
   const ibm::Grid grid = ibm::grid_of(fluid);
   if (fluid.params().precision == lb::Precision::kFloat) {
@@ -139,10 +166,19 @@ AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel
   return report;
 }
 
+std::vector<AdvectReport> advect_cells(ImmersedCells& cells, const lb::Fluid& fluid, ibm::Kernel kernel,
+                                       int threads) {
+  std::vector<AdvectReport> reports;
+  reports.reserve(cells.size());
+  for (ImmersedCell& cell : cells.cells) reports.push_back(advect_cell(cell, fluid, kernel, threads));
+  return reports;
+}
+
+// x = X dx
 std::vector<double> box_positions_m(const ImmersedCell& cell) {
   std::vector<double> out(cell.positions_lattice.size());
   for (std::size_t i = 0; i < out.size(); ++i) out[i] = cell.positions_lattice[i] * cell.spacing_m;
   return out;
 }
 
-}  // namespace cellflow::scenes
+}  // namespace cellflow::coupling

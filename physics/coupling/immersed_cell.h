@@ -1,12 +1,14 @@
-// The immersed-boundary coupling of one tetrahedral cell to a lattice-
-// Boltzmann fluid: the building blocks of one time step of the shear-flow
-// scene, exposed so that tests and benchmarks exercise the same code.
+// The immersed-boundary coupling of N tetrahedral cells to a lattice-
+// Boltzmann fluid (paper section 7; several cells as in section 7.3, which
+// interact only through the fluid here): the building blocks of one time step of
+// the flow scenes, exposed so that tests and benchmarks exercise the same code.
 //
-// One time step (lattice units, dt = 1):
+// One time step (lattice units, dt = 1), for every cell of an ImmersedCells:
 //   compute_elastic_forces   f = elastic forces at the vertices   (paper eq. 9-10)
-//   spread_cell_forces       force field = sum_p f_p delta(x - X_p)   (Guo forcing in the LB step)
+//   spread_forces            force field = sum_cells sum_p f_p delta(x - X_p)   (Guo forcing in the LB step)
 //   lb::collide_stream       u(t) written into the velocity field
-//   advect_cell              U_p = sum_x u(x) delta(x - X_p);  X_p += U_p
+//   advect_cells             U_p = sum_x u(x) delta(x - X_p);  X_p += U_p
+// For one cell the arithmetic is that of the single-cell coupling it replaces.
 #pragma once
 
 #include <cstddef>
@@ -18,7 +20,7 @@
 #include "physics/mesh/tet_mesh.h"
 #include "physics/units/units.h"
 
-namespace cellflow::scenes {
+namespace cellflow::coupling {
 
 // Lattice nodes [lo, hi] (inclusive, before periodic wrap) per direction.
 struct NodeBox {
@@ -26,11 +28,15 @@ struct NodeBox {
   int hi[3] = {-1, -1, -1};  // hi < lo: empty
 };
 
+// One immersed cell: its mesh and body (not owned; they must outlive it) and
+// its interpolation/spreading state.
 struct ImmersedCell {
+  const mesh::TetMesh* mesh = nullptr;
+  const elastic::ElasticBody* body = nullptr;
   // Vertex state, 3 per vertex, interleaved.
   std::vector<double> positions_lattice;   // box coordinates, lattice units
   std::vector<double> forces_lattice;      // elastic forces of the last compute_elastic_forces
-  std::vector<double> velocities_lattice;  // fluid velocity of the last advect_cell
+  std::vector<double> velocities_lattice;  // fluid velocity of the last advect
   // SI scratch for the elastic law: positions relative to `origin_lattice`
   // (keeps the deformation gradient free of the box offset's round-off).
   std::vector<double> positions_m;
@@ -38,23 +44,45 @@ struct ImmersedCell {
   double origin_lattice[3] = {0, 0, 0};
   double spacing_m = 0.0;          // dx
   double newton_to_lattice = 0.0;  // F_lb = F dt^2 / (m dx) per newton
-  NodeBox last_support;            // nodes the last spread touched
+  NodeBox last_support;            // nodes this cell's last spread touched
 };
 
-// Places the mesh (reference positions in metres, about its own origin) with
-// its origin at `origin_lattice` (box coordinates, lattice units).
-ImmersedCell make_immersed_cell(const mesh::TetMesh& mesh, const units::Units& units,
-                                const double origin_lattice[3]);
+// The cells immersed in one fluid, in a fixed order (the order of spreading
+// and of every per-cell result). No cell-cell contact: cells interact only
+// through the fluid.
+struct ImmersedCells {
+  std::vector<ImmersedCell> cells;
 
-// Elastic forces at the current positions (computed in SI, stored in lattice
-// units). Returns the elastic energy (J) and the first inverted tetrahedron.
-elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, const elastic::ElasticBody& body,
-                                                  int threads);
+  std::size_t size() const { return cells.size(); }
+  ImmersedCell& operator[](std::size_t i) { return cells[i]; }
+  const ImmersedCell& operator[](std::size_t i) const { return cells[i]; }
+};
 
-// Clears the force field on the nodes the previous spread touched (and only
-// there), then spreads forces_lattice. The fluid must have a force field.
-// The force field must be zero elsewhere (as make_fluid leaves it).
-void spread_cell_forces(ImmersedCell& cell, lb::Fluid& fluid, ibm::Kernel kernel, int threads);
+// X = origin + x / dx: places the mesh (reference positions in metres, about
+// its own origin) with its origin at `origin_lattice` (box coordinates,
+// lattice units). Keeps pointers to `mesh` and `body`.
+ImmersedCell make_immersed_cell(const mesh::TetMesh& mesh, const elastic::ElasticBody& body,
+                                const units::Units& units, const double origin_lattice[3]);
+
+// Appends make_immersed_cell(...) to `cells`; returns it (references to
+// earlier cells may be invalidated).
+ImmersedCell& add_cell(ImmersedCells& cells, const mesh::TetMesh& mesh, const elastic::ElasticBody& body,
+                       const units::Units& units, const double origin_lattice[3]);
+
+// f = -dW/dx at the current positions (paper eq. 9-10), computed in SI,
+// stored in lattice units (F_lb = F dt^2 / (m dx)). Returns the elastic
+// energy (J) and the first inverted tetrahedron.
+elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, int threads);
+
+// compute_elastic_forces of every cell; one evaluation per cell, in order.
+std::vector<elastic::ElasticEvaluation> compute_elastic_forces(ImmersedCells& cells, int threads);
+
+// F(x) = sum_cells sum_p f_p delta_h(x - X_p)   (spreading, paper section 7; no equation number).
+// Clears the force field on the union of the nodes the previous spreads of
+// all cells touched (and only there), then spreads every cell's
+// forces_lattice in order and records each cell's new support. The fluid
+// must have a force field, zero elsewhere (as make_fluid leaves it).
+void spread_forces(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int threads);
 
 struct AdvectReport {
   double max_speed_lattice = 0.0;  // NaN if a velocity is NaN
@@ -62,11 +90,17 @@ struct AdvectReport {
   double hi[3] = {0, 0, 0};
 };
 
-// Interpolates the fluid's velocity field at the vertices and moves them by
-// one time step: X += U dt   (explicit Euler, dt = 1).
+// U_p = sum_x u(x) delta_h(x - X_p), then X_p += U_p dt   (interpolation, paper section 7)
+// (explicit Euler, dt = 1): interpolates the fluid's velocity field at the
+// cell's vertices and moves them by one time step.
 AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel kernel, int threads);
 
-// Positions in metres in box coordinates (walls at y = 0 and H).
+// advect_cell of every cell, each by its own interpolated velocity; one
+// report per cell, in order.
+std::vector<AdvectReport> advect_cells(ImmersedCells& cells, const lb::Fluid& fluid, ibm::Kernel kernel,
+                                       int threads);
+
+// x = X dx: positions in metres in box coordinates (walls at y = 0 and H).
 std::vector<double> box_positions_m(const ImmersedCell& cell);
 
-}  // namespace cellflow::scenes
+}  // namespace cellflow::coupling

@@ -2,7 +2,10 @@
 // (physics/coupling/immersed_cell.h): a force-free cell in a fluid at
 // rest stays at rest; spreading the elastic forces of a deformed cell puts
 // exactly their total force and torque into the fluid; the local clearing of
-// the force field leaves no stale force behind.
+// the force field leaves no stale force behind. Two cells: the elastic forces
+// and the spread are those of each cell alone (spreading is linear), the
+// clearing covers the previous supports of both, and each cell is advected
+// by its own interpolated velocity.
 #include "physics/coupling/immersed_cell.h"
 
 #include <gtest/gtest.h>
@@ -17,7 +20,7 @@
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/units/units.h"
 
-namespace cellflow::scenes {
+namespace cellflow::coupling {
 namespace {
 
 constexpr double kRadius = 6e-6;  // m
@@ -76,15 +79,16 @@ TEST_P(RestTest, ForceFreeCellInFluidAtRestStaysAtRest) {
   const units::Units u = test_units();
   lb::Fluid fluid = make_test_fluid(GetParam());
   const double centre[3] = {0.5 * kBox, 0.5 * kBox, 0.5 * kBox};
-  ImmersedCell immersed = make_immersed_cell(cell.mesh, u, centre);
+  ImmersedCells cells;
+  ImmersedCell& immersed = add_cell(cells, cell.mesh, cell.body, u, centre);
   const std::vector<double> start = immersed.positions_lattice;
   lb::update_velocity_field(fluid);
   double max_force = 0.0;
   for (int step = 0; step < 300; ++step) {
-    const elastic::ElasticEvaluation eval = compute_elastic_forces(immersed, cell.body, 1);
+    const elastic::ElasticEvaluation eval = compute_elastic_forces(immersed, 1);
     ASSERT_LT(eval.first_inverted_tet, 0);
     for (double f : immersed.forces_lattice) max_force = std::max(max_force, std::abs(f));
-    spread_cell_forces(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+    spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
     lb::collide_stream(fluid);
     const AdvectReport report = advect_cell(immersed, fluid, ibm::Kernel::kPeskin4, 1);
     ASSERT_TRUE(std::isfinite(report.max_speed_lattice));
@@ -187,15 +191,16 @@ TEST(ImmersedCell, SpreadingConservesTotalForceAndTorque) {
     SCOPED_TRACE(std::string(ibm::kernel_name(kernel)));
     lb::Fluid fluid = make_test_fluid(lb::Precision::kDouble);
     const double centre[3] = {0.5 * kBox + 0.3, 0.5 * kBox - 0.2, 0.5 * kBox + 0.1};
-    ImmersedCell immersed = make_immersed_cell(cell.mesh, u, centre);
+    ImmersedCells cells;
+    ImmersedCell& immersed = add_cell(cells, cell.mesh, cell.body, u, centre);
     deform(immersed);
-    const elastic::ElasticEvaluation eval = compute_elastic_forces(immersed, cell.body, 1);
+    const elastic::ElasticEvaluation eval = compute_elastic_forces(immersed, 1);
     ASSERT_LT(eval.first_inverted_tet, 0);
     ASSERT_GT(eval.energy_j, 0.0);
 
     const Moments points = point_moments(immersed, centre);
     ASSERT_GT(points.force_scale, 0.0);
-    spread_cell_forces(immersed, fluid, kernel, 1);
+    spread_forces(cells, fluid, kernel, 1);
     expect_same_moments(field_moments(fluid, centre), points);
 
     // Unbalanced: only the vertices with x above the centre push.
@@ -207,12 +212,12 @@ TEST(ImmersedCell, SpreadingConservesTotalForceAndTorque) {
     const Moments half = point_moments(immersed, centre);
     EXPECT_GT(std::abs(half.force[0]) + std::abs(half.force[1]) + std::abs(half.force[2]),
               0.1 * half.force_scale / 1000);
-    spread_cell_forces(immersed, fluid, kernel, 1);  // clears the previous spread first
+    spread_forces(cells, fluid, kernel, 1);  // clears the previous spread first
     expect_same_moments(field_moments(fluid, centre), half);
   }
 }
 
-// spread_cell_forces clears only the nodes the previous spread touched: after
+// spread_forces clears only the nodes the previous spread touched: after
 // the cell has moved, the field must equal a spread onto a cleared lattice.
 TEST(ImmersedCell, LocalClearingLeavesNoStaleForce) {
   const Cell cell = make_cell(400);
@@ -221,10 +226,11 @@ TEST(ImmersedCell, LocalClearingLeavesNoStaleForce) {
   lb::Fluid reference = make_test_fluid(lb::Precision::kDouble);
   // Near the periodic x boundary so that the cleared box wraps around.
   const double centre[3] = {2.5, 0.5 * kBox, 0.5 * kBox};
-  ImmersedCell immersed = make_immersed_cell(cell.mesh, u, centre);
+  ImmersedCells cells;
+  ImmersedCell& immersed = add_cell(cells, cell.mesh, cell.body, u, centre);
   deform(immersed);
-  ASSERT_LT(compute_elastic_forces(immersed, cell.body, 1).first_inverted_tet, 0);
-  spread_cell_forces(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+  ASSERT_LT(compute_elastic_forces(immersed, 1).first_inverted_tet, 0);
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
   // Move by 1.7 spacings in x and 0.6 in y, recompute, spread again.
   for (std::size_t v = 0; v < immersed.positions_lattice.size() / 3; ++v) {
     immersed.positions_lattice[3 * v] += 1.7;
@@ -232,13 +238,13 @@ TEST(ImmersedCell, LocalClearingLeavesNoStaleForce) {
   }
   immersed.origin_lattice[0] += 1.7;
   immersed.origin_lattice[1] += 0.6;
-  ASSERT_LT(compute_elastic_forces(immersed, cell.body, 1).first_inverted_tet, 0);
-  spread_cell_forces(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+  ASSERT_LT(compute_elastic_forces(immersed, 1).first_inverted_tet, 0);
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
 
-  ImmersedCell fresh = immersed;
-  fresh.last_support = NodeBox{};
+  ImmersedCells fresh = cells;
+  fresh[0].last_support = NodeBox{};
   lb::zero_force_field(reference);
-  spread_cell_forces(fresh, reference, ibm::Kernel::kPeskin4, 1);
+  spread_forces(fresh, reference, ibm::Kernel::kPeskin4, 1);
   const lb::VectorField<double> a = fluid.force_field<double>();
   const lb::VectorField<double> b = reference.force_field<double>();
   double max_difference = 0.0, max_force = 0.0;
@@ -251,5 +257,178 @@ TEST(ImmersedCell, LocalClearingLeavesNoStaleForce) {
   EXPECT_EQ(max_difference, 0.0);
 }
 
+// Two cells whose spreading supports overlap (centres 7.3 spacings apart,
+// radius 4 spacings): the cells interact only through the fluid.
+constexpr double kCentreA[3] = {8.3, 12.2, 12.1};
+constexpr double kCentreB[3] = {15.6, 11.7, 12.4};
+
+ImmersedCells two_deformed_cells(const Cell& a, const Cell& b, const units::Units& u) {
+  ImmersedCells cells;
+  add_cell(cells, a.mesh, a.body, u, kCentreA);
+  add_cell(cells, b.mesh, b.body, u, kCentreB);
+  for (ImmersedCell& c : cells.cells) deform(c);
+  return cells;
+}
+
+ImmersedCells only(const ImmersedCells& cells, std::size_t i) {
+  ImmersedCells one;
+  one.cells.push_back(cells[i]);
+  return one;
+}
+
+double max_abs_field(lb::Fluid& fluid) {
+  const lb::VectorField<double> f = fluid.force_field<double>();
+  double m = 0.0;
+  for (std::size_t n = 0; n < fluid.num_nodes(); ++n) {
+    m = std::max({m, std::abs(f.x[n]), std::abs(f.y[n]), std::abs(f.z[n])});
+  }
+  return m;
+}
+
+// The elastic forces of each cell are those of the cell alone, and spreading
+// is linear: the field of both cells is the sum of the fields each cell alone
+// spreads (to round-off where the supports overlap).
+TEST(ImmersedCells, SpreadingTwoCellsIsTheSumOfEachCellsSpread) {
+  const Cell a = make_cell(400);
+  const Cell b = make_cell(1000);
+  const units::Units u = test_units();
+  ImmersedCells cells = two_deformed_cells(a, b, u);
+  ImmersedCells alone[2] = {only(cells, 0), only(cells, 1)};
+  const std::vector<elastic::ElasticEvaluation> evals = compute_elastic_forces(cells, 1);
+  ASSERT_EQ(evals.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    const elastic::ElasticEvaluation single = compute_elastic_forces(alone[i][0], 1);
+    ASSERT_LT(evals[i].first_inverted_tet, 0);
+    EXPECT_GT(evals[i].energy_j, 0.0);
+    EXPECT_EQ(evals[i].energy_j, single.energy_j) << "cell " << i;
+    EXPECT_EQ(cells[i].forces_lattice, alone[i][0].forces_lattice) << "cell " << i;
+  }
+
+  lb::Fluid both = make_test_fluid(lb::Precision::kDouble);
+  lb::Fluid field_a = make_test_fluid(lb::Precision::kDouble);
+  lb::Fluid field_b = make_test_fluid(lb::Precision::kDouble);
+  spread_forces(cells, both, ibm::Kernel::kPeskin4, 1);
+  spread_forces(alone[0], field_a, ibm::Kernel::kPeskin4, 1);
+  spread_forces(alone[1], field_b, ibm::Kernel::kPeskin4, 1);
+  // Each cell records its own support, not the union.
+  for (std::size_t i = 0; i < 2; ++i) {
+    for (int d = 0; d < 3; ++d) {
+      EXPECT_EQ(cells[i].last_support.lo[d], alone[i][0].last_support.lo[d]);
+      EXPECT_EQ(cells[i].last_support.hi[d], alone[i][0].last_support.hi[d]);
+    }
+  }
+  const lb::VectorField<double> f = both.force_field<double>();
+  const lb::VectorField<double> fa = field_a.force_field<double>();
+  const lb::VectorField<double> fb = field_b.force_field<double>();
+  const double scale = max_abs_field(both);
+  ASSERT_GT(scale, 0.0);
+  double max_difference = 0.0;
+  int overlap = 0;
+  for (std::size_t n = 0; n < both.num_nodes(); ++n) {
+    max_difference =
+        std::max({max_difference, std::abs(f.x[n] - (fa.x[n] + fb.x[n])),
+                  std::abs(f.y[n] - (fa.y[n] + fb.y[n])), std::abs(f.z[n] - (fa.z[n] + fb.z[n]))});
+    if (fa.x[n] != 0.0 && fb.x[n] != 0.0) ++overlap;
+  }
+  EXPECT_GT(overlap, 0) << "the supports of the two cells do not overlap";
+  EXPECT_LE(max_difference, 1e-12 * scale);
+  std::printf("two cells: %d nodes in both supports, |F - (F_a + F_b)| <= %.1e of max |F|\n", overlap,
+              max_difference / scale);
+}
+
+// After both cells have moved, the local clearing must remove the previous
+// spreads of both (the union of their supports) before either spreads again:
+// the field equals both spread onto a cleared lattice, exactly.
+TEST(ImmersedCells, ClearingCoversThePreviousSupportsOfBothCells) {
+  const Cell a = make_cell(400);
+  const Cell b = make_cell(400);
+  const units::Units u = test_units();
+  lb::Fluid fluid = make_test_fluid(lb::Precision::kDouble);
+  lb::Fluid reference = make_test_fluid(lb::Precision::kDouble);
+  ImmersedCells cells = two_deformed_cells(a, b, u);
+  ASSERT_LT(compute_elastic_forces(cells, 1)[0].first_inverted_tet, 0);
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
+  // Towards each other (A's new support overlaps B's old one) and apart in z.
+  const double shift[2][3] = {{1.7, 0.6, -0.8}, {-1.3, -0.4, 0.9}};
+  for (std::size_t i = 0; i < 2; ++i) {
+    for (std::size_t v = 0; v < cells[i].positions_lattice.size() / 3; ++v) {
+      for (int d = 0; d < 3; ++d) cells[i].positions_lattice[3 * v + d] += shift[i][d];
+    }
+    for (int d = 0; d < 3; ++d) cells[i].origin_lattice[d] += shift[i][d];
+  }
+  for (const elastic::ElasticEvaluation& eval : compute_elastic_forces(cells, 1)) {
+    ASSERT_LT(eval.first_inverted_tet, 0);
+  }
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
+
+  ImmersedCells fresh = cells;
+  for (ImmersedCell& c : fresh.cells) c.last_support = NodeBox{};
+  lb::zero_force_field(reference);
+  spread_forces(fresh, reference, ibm::Kernel::kPeskin4, 1);
+  const lb::VectorField<double> x = fluid.force_field<double>();
+  const lb::VectorField<double> y = reference.force_field<double>();
+  double max_difference = 0.0;
+  for (std::size_t n = 0; n < fluid.num_nodes(); ++n) {
+    max_difference = std::max(
+        {max_difference, std::abs(x.x[n] - y.x[n]), std::abs(x.y[n] - y.y[n]), std::abs(x.z[n] - y.z[n])});
+  }
+  ASSERT_GT(max_abs_field(reference), 0.0);
+  EXPECT_EQ(max_difference, 0.0);
+}
+
+// In a linear shear u_x = s (y - y0) each vertex moves by the velocity
+// interpolated at its own position (linear fields interpolate exactly), so
+// the two cells, below and above y0, move in opposite directions; each moves
+// exactly as it would alone.
+TEST(ImmersedCells, AdvectMovesEachCellByItsOwnInterpolatedVelocity) {
+  const Cell a = make_cell(400);
+  const Cell b = make_cell(400);
+  const units::Units u = test_units();
+  lb::Fluid fluid = make_test_fluid(lb::Precision::kDouble);
+  constexpr double kShear = 1e-3, kY0 = 0.5 * kBox;
+  {
+    // u_x = s (y - y0) at the nodes y = j + 1/2
+    std::vector<double> ux(fluid.num_nodes(), 0.0), zero(fluid.num_nodes(), 0.0);
+    for (int k = 0; k < kBox; ++k) {
+      for (int j = 0; j < kBox; ++j) {
+        for (int i = 0; i < kBox; ++i) ux[fluid.node(i, j, k)] = kShear * (j + 0.5 - kY0);
+      }
+    }
+    lb::set_equilibrium(fluid, {}, ux, zero, zero);
+    lb::update_velocity_field(fluid);
+  }
+  const double below[3] = {0.5 * kBox, 7.0, 0.5 * kBox}, above[3] = {0.5 * kBox + 0.4, 17.0, 0.5 * kBox};
+  ImmersedCells cells;
+  add_cell(cells, a.mesh, a.body, u, below);
+  add_cell(cells, b.mesh, b.body, u, above);
+  ImmersedCells alone[2] = {only(cells, 0), only(cells, 1)};
+  const ImmersedCells start = cells;
+
+  const std::vector<AdvectReport> reports = advect_cells(cells, fluid, ibm::Kernel::kPeskin4, 1);
+  ASSERT_EQ(reports.size(), 2u);
+  double mean_dx[2] = {0.0, 0.0};
+  for (std::size_t i = 0; i < 2; ++i) {
+    const AdvectReport single = advect_cell(alone[i][0], fluid, ibm::Kernel::kPeskin4, 1);
+    EXPECT_EQ(cells[i].positions_lattice, alone[i][0].positions_lattice) << "cell " << i;
+    EXPECT_EQ(reports[i].max_speed_lattice, single.max_speed_lattice) << "cell " << i;
+    const std::vector<double>& x0 = start[i].positions_lattice;
+    const std::vector<double>& x1 = cells[i].positions_lattice;
+    const std::size_t nv = x0.size() / 3;
+    for (std::size_t v = 0; v < nv; ++v) {
+      // X += U dt with U = (s (Y - y0), 0, 0)
+      EXPECT_NEAR(x1[3 * v] - x0[3 * v], kShear * (x0[3 * v + 1] - kY0), 1e-12)
+          << "cell " << i << " vertex " << v;
+      EXPECT_NEAR(x1[3 * v + 1], x0[3 * v + 1], 1e-12);
+      EXPECT_NEAR(x1[3 * v + 2], x0[3 * v + 2], 1e-12);
+      mean_dx[i] += (x1[3 * v] - x0[3 * v]) / static_cast<double>(nv);
+    }
+  }
+  // The vertex mean lies within a tenth of a spacing of the placed centre.
+  EXPECT_NEAR(mean_dx[0], kShear * (below[1] - kY0), 0.1 * kShear);
+  EXPECT_NEAR(mean_dx[1], kShear * (above[1] - kY0), 0.1 * kShear);
+  EXPECT_LT(mean_dx[0], 0.0);
+  EXPECT_GT(mean_dx[1], 0.0);
+}
+
 }  // namespace
-}  // namespace cellflow::scenes
+}  // namespace cellflow::coupling

@@ -16,9 +16,10 @@
 #include <string_view>
 #include <vector>
 
+#include "physics/cell/cell_body.h"
+#include "physics/cell/cell_params.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/elastic/material.h"
-#include "physics/cell/cell_params.h"
 #include "physics/scenes/quasi_static/quasi_static.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "scene_link_closure.h"
@@ -67,20 +68,16 @@ TEST(SceneLinkClosure, ShearFlowBuildsNoContactSearchAndNoSolver) {
   EXPECT_FALSE(links(kShearFlowClosure, "cellflow_quasi_static")) << all;
 }
 
-// The body as the compression scene builds it (quasi_static.cc: the cell
-// mesh, then make_elastic_body with the cytoplasm and nucleus materials).
-elastic::ElasticBody scene_body(const scenes::CellParams& cell) {
-  StatusOr<mesh::TetMesh> m = scenes::build_cell_mesh(cell);
-  EXPECT_TRUE(m.ok()) << m.status().to_string();
-  const elastic::Material materials[2] = {cell.material,
-                                          cell.nucleus ? cell.nucleus->material : cell.material};
-  StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(*m, materials);
-  EXPECT_TRUE(body.ok()) << body.status().to_string();
-  return std::move(*body);
+// The body as the compression scene builds it (quasi_static.cc:
+// cell::build_cell_body, the cell mesh with the cytoplasm and nucleus materials).
+elastic::ElasticBody scene_body(const cell::CellParams& cell) {
+  StatusOr<cell::CellBody> built = cell::build_cell_body(cell, elastic::VolumetricTerm::kPerTet);
+  EXPECT_TRUE(built.ok()) << built.status().to_string();
+  return std::move(built->body);
 }
 
-scenes::CellParams cell_with_w(double w) {
-  scenes::CellParams cell;
+cell::CellParams cell_with_w(double w) {
+  cell::CellParams cell;
   cell.radius_m = 8.6e-6;
   cell.material = {.youngs_modulus_pa = 1000.0, .poisson_ratio = 0.48, .mooney_rivlin_w = w};
   cell.target_vertex_count = 200;
@@ -94,8 +91,8 @@ TEST(NeoHookeanPath, WOneGivesANeoHookeanBody) {
 
   EXPECT_FALSE(scene_body(cell_with_w(0.5)).neo_hookean);
   // A Mooney-Rivlin nucleus in a neo-Hookean cytoplasm needs the K term.
-  scenes::CellParams mixed = cell_with_w(1.0);
-  mixed.nucleus = scenes::NucleusParams{
+  cell::CellParams mixed = cell_with_w(1.0);
+  mixed.nucleus = cell::NucleusParams{
       .radius_m = 4e-6,
       .material = {.youngs_modulus_pa = 1e4, .poisson_ratio = 0.48, .mooney_rivlin_w = 0.5}};
   EXPECT_FALSE(scene_body(mixed).neo_hookean);
@@ -110,7 +107,7 @@ TEST(NeoHookeanPath, TheNeoHookeanKernelNeverEvaluatesTheKTerm) {
   ASSERT_TRUE(nh.neo_hookean);
   const std::size_t n = 3 * nh.num_vertices;
   // A smooth finite deformation of the mesh: stretch, shear and a twist.
-  StatusOr<mesh::TetMesh> m = scenes::build_cell_mesh(cell_with_w(1.0));
+  StatusOr<mesh::TetMesh> m = cell::build_cell_mesh(cell_with_w(1.0));
   ASSERT_TRUE(m.ok());
   std::vector<double> y = m->positions_m;
   for (std::size_t v = 0; v < nh.num_vertices; ++v) {

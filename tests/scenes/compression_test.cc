@@ -85,7 +85,7 @@ TEST(Compression, StiffNucleusRaisesTheForce) {
   CompressionParams nucleated = plain;
   elastic::Material nucleus_material = plain.cell.material;
   nucleus_material.youngs_modulus_pa *= 10.0;
-  nucleated.cell.nucleus = NucleusParams{0.5 * kRadius, nucleus_material};
+  nucleated.cell.nucleus = cell::NucleusParams{0.5 * kRadius, nucleus_material};
   const QuasiStaticResult a = run_compression(plain);
   const QuasiStaticResult b = run_compression(nucleated);
   ASSERT_TRUE(a.status.ok()) << a.status.to_string();

@@ -91,17 +91,17 @@ INSTANTIATE_TEST_SUITE_P(
                        "compression.cell.target_vertex_count"},
         BadCompression{"nucleus_radius_zero",
                        [](auto& p) {
-                         p.cell.nucleus = NucleusParams{0.0, p.cell.material};
+                         p.cell.nucleus = cell::NucleusParams{0.0, p.cell.material};
                        },
                        "compression.cell.nucleus.radius_m"},
         BadCompression{"nucleus_radius_equal_R",
                        [](auto& p) {
-                         p.cell.nucleus = NucleusParams{kRadius, p.cell.material};
+                         p.cell.nucleus = cell::NucleusParams{kRadius, p.cell.material};
                        },
                        "compression.cell.nucleus.radius_m"},
         BadCompression{"nucleus_material",
                        [](auto& p) {
-                         p.cell.nucleus = NucleusParams{0.5 * kRadius, p.cell.material};
+                         p.cell.nucleus = cell::NucleusParams{0.5 * kRadius, p.cell.material};
                          p.cell.nucleus->material.youngs_modulus_pa = 0;
                        },
                        "compression.cell.nucleus.material.youngs_modulus_pa"},
@@ -226,7 +226,7 @@ TEST_F(MeshFile, MeshOfTheWrongSizeIsRefused) {
 TEST_F(MeshFile, NucleusRequestedButAbsentIsRefused) {
   CompressionParams p = good_compression();
   p.cell.mesh_file = write(sphere_, "plain.msh");
-  p.cell.nucleus = NucleusParams{0.5 * kRadius, p.cell.material};
+  p.cell.nucleus = cell::NucleusParams{0.5 * kRadius, p.cell.material};
   const QuasiStaticResult r = run_compression(p);
   EXPECT_EQ(r.status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(r.status.message().find("compression.cell.nucleus"), std::string::npos) << r.status.message();

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <string>
 
+#include "physics/cell/cell_body.h"
 #include "physics/contact/rigid_contact.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/mesh/sphere_mesh.h"
@@ -95,33 +96,18 @@ struct Setup {
   double z_top_m = 0.0, z_bottom_m = 0.0;  // extreme surface vertex heights
 };
 
-StatusOr<Setup> prepare(const CellParams& cell, const QuasiStaticOptions& numerics, std::string_view prefix) {
+StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& numerics,
+                        std::string_view prefix) {
   Setup setup;
-  StatusOr<mesh::TetMesh> built = build_cell_mesh(cell, std::string(prefix) + "cell.");
+  // The cell mesh with its bounding box centred at the origin, and its body.
+  StatusOr<cell::CellBody> built = cell::build_cell_body(
+      cell, numerics.volumetric, std::string(prefix) + "cell.", cell::Centring::kBoundingBox);
   if (!built.ok()) return built.status();
-  setup.mesh = std::move(built).value();
+  setup.mesh = std::move(built->mesh);
+  setup.body = std::move(built->body);
   mesh::TetMesh& m = setup.mesh;
-  // Centre the bounding box at the origin.
-  std::array<double, 3> lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-  for (std::size_t v = 0; v < m.num_vertices(); ++v) {
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::min(lo[a], m.positions_m[3 * v + a]);
-      hi[a] = std::max(hi[a], m.positions_m[3 * v + a]);
-    }
-  }
-  for (std::size_t v = 0; v < m.num_vertices(); ++v) {
-    for (int a = 0; a < 3; ++a) m.positions_m[3 * v + a] -= 0.5 * (lo[a] + hi[a]);
-  }
-  setup.z_top_m = 0.5 * (hi[2] - lo[2]);
+  setup.z_top_m = 0.5 * built->extent_m[2];
   setup.z_bottom_m = -setup.z_top_m;
-  // Nucleus tets of a file without nucleus parameters take the cytoplasm material.
-  const std::array<elastic::Material, 2> materials{cell.material,
-                                                   cell.nucleus ? cell.nucleus->material : cell.material};
-  StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(m, materials, numerics.volumetric);
-  if (!body.ok()) {
-    return Status(body.status().code(), std::string(prefix) + "cell: " + body.status().message());
-  }
-  setup.body = std::move(body).value();
   for (std::size_t v = 0; v < m.num_vertices(); ++v) {
     if (m.on_surface[v]) setup.surface_vertices.push_back(static_cast<std::int32_t>(v));
   }
@@ -139,7 +125,7 @@ StatusOr<Setup> prepare(const CellParams& cell, const QuasiStaticOptions& numeri
   return setup;
 }
 
-solver::EquilibriumOptions solver_options(const QuasiStaticOptions& numerics, const CellParams& cell) {
+solver::EquilibriumOptions solver_options(const QuasiStaticOptions& numerics, const cell::CellParams& cell) {
   solver::EquilibriumOptions o;
   o.residual_tolerance = numerics.residual_tolerance;
   o.max_newton_iterations = numerics.max_newton_iterations;
@@ -152,9 +138,10 @@ solver::EquilibriumOptions solver_options(const QuasiStaticOptions& numerics, co
 // Runs the load points of a quasi-static scene. `measure` fills the
 // scene-specific fields (force, Hertz) of a point from the converged state.
 template <class Measure>
-QuasiStaticResult run_load_points(Setup& setup, const CellParams& cell, const QuasiStaticOptions& numerics,
-                                  solver::ObstaclesAtLoad obstacles, double max_travel_m, int load_points,
-                                  const SceneCallbacks& callbacks, Measure measure) {
+QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
+                                  const QuasiStaticOptions& numerics, solver::ObstaclesAtLoad obstacles,
+                                  double max_travel_m, int load_points, const SceneCallbacks& callbacks,
+                                  Measure measure) {
   QuasiStaticResult result;
   if (callbacks.on_mesh) callbacks.on_mesh(setup.mesh);
   solver::EquilibriumSolver solver(setup.body, setup.surface_vertices, setup.mesh.positions_m,
@@ -287,7 +274,7 @@ QuasiStaticResult run_compression(const CompressionParams& params, const SceneCa
     o.upper_plate_z_m = upper_z0 - travel_m;
     return o;
   };
-  const CellParams& cell = params.cell;
+  const cell::CellParams& cell = params.cell;
   auto measure = [&](const solver::EquilibriumReport& eq, double travel_m, CurvePoint& point) {
     point.force_n = eq.contact.upper_plate_reaction_n;
     point.hertz_force_n = hertz_plates_force_n(cell.material, cell.radius_m, travel_m);
@@ -323,7 +310,7 @@ QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCa
     o.probe = contact::Probe{.centre_m = {0.0, 0.0, centre_z0 - travel_m}, .radius_m = probe_radius};
     return o;
   };
-  const CellParams& cell = params.cell;
+  const cell::CellParams& cell = params.cell;
   auto measure = [&](const solver::EquilibriumReport& eq, double travel_m, CurvePoint& point) {
     point.force_n = eq.contact.probe_reaction_n[2];
     point.hertz_force_n = hertz_probe_force_n(cell.material, cell.radius_m, probe_radius, travel_m);

@@ -24,10 +24,10 @@
 #include <span>
 #include <vector>
 
+#include "physics/cell/cell_params.h"
 #include "physics/core/status.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/mesh/tet_mesh.h"
-#include "physics/cell/cell_params.h"
 
 namespace cellflow::scenes {
 
@@ -53,14 +53,14 @@ struct QuasiStaticOptions {
 };
 
 struct CompressionParams {
-  CellParams cell;
+  cell::CellParams cell;
   double max_deformation = 0.5;  // compression / diameter, in (0, 0.9]
   int load_points = 40;          // points of the curve after first contact, >= 1
   QuasiStaticOptions numerics;
 };
 
 struct IndentationParams {
-  CellParams cell;
+  cell::CellParams cell;
   double probe_radius_m = 0.0;     // > 0
   double max_indentation_m = 0.0;  // total approach after first contact, in (0, 0.9 * 2 R)
   int load_points = 40;

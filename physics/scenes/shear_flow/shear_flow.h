@@ -41,11 +41,11 @@
 #include <string_view>
 #include <vector>
 
+#include "physics/cell/cell_params.h"
 #include "physics/core/status.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/ibm/ibm.h"
 #include "physics/mesh/tet_mesh.h"
-#include "physics/cell/cell_params.h"
 
 namespace cellflow::scenes {
 
@@ -56,8 +56,8 @@ namespace cellflow::scenes {
 // +20 %, for 30 % more time per step. The bulk stiffness couples the mesh
 // term: at nu = 0.3 the mesh dependence is three times weaker.
 inline constexpr int kFlowDefaultVertexCount = 3000;
-inline CellParams flow_cell_defaults() {
-  CellParams cell;
+inline cell::CellParams flow_cell_defaults() {
+  cell::CellParams cell;
   cell.target_vertex_count = kFlowDefaultVertexCount;
   return cell;
 }
@@ -112,7 +112,7 @@ struct ShearFlowNumerics {
 };
 
 struct ShearFlowParams {
-  CellParams cell = flow_cell_defaults();
+  cell::CellParams cell = flow_cell_defaults();
   double fluid_density_kg_m3 = 1e3;    // rho > 0
   double fluid_viscosity_pa_s = 1e-3;  // eta > 0
   // Exactly one of the two drives the flow: the shear rate, or the capillary

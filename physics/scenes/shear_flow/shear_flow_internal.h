@@ -1,0 +1,87 @@
+// Internals of the shear-flow scene shared by its translation units
+// (shear_flow_plan.cc, shear_flow_observables.cc, stiffness_check.cc,
+// shear_flow.cc): the plan, the state of one run and the helpers each part
+// calls. Not part of the public interface; include only from these files.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "physics/core/status.h"
+#include "physics/coupling/immersed_cell.h"
+#include "physics/elastic/elastic_body.h"
+#include "physics/elastic/material.h"
+#include "physics/mesh/tet_mesh.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
+#include "physics/units/units.h"
+
+namespace cellflow::scenes::shear_flow_detail {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// "%.6g" of v.
+std::string num(double v);
+
+// Elastic energy above this multiple of mu V0 is a blow-up: the paper's
+// largest deformation (strain 1.8 at Ca = 2) stores about 3 mu V0.
+constexpr double kEnergyBlowUp = 100.0;
+
+// mu = mu1 + mu2 of the material.
+double shear_modulus(const elastic::Material& material);
+
+// Everything plan_shear_flow derives, with the conversion object.
+struct Plan {
+  ShearFlowSetup setup;
+  units::Units units{1.0, 1.0, 1.0, 1.0};
+};
+
+// validate + units + Mach + memory checks (shear_flow_plan.cc).
+StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_prefix);
+
+// S = k_max,lb / (6 pi eta_lb): sets result.stiffness_ratio; kInvalidArgument
+// above the kernel's limit (stiffness_check.cc).
+Status check_stiffness(const ShearFlowParams& params, const units::Units& u, const elastic::ElasticBody& body,
+                       const std::vector<double>& positions_m, const std::string& prefix,
+                       ShearFlowResult& result);
+
+// t_wall = now - t0 in seconds.
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// State of one run.
+struct Run {
+  const ShearFlowParams* params = nullptr;
+  const ShearFlowCallbacks* callbacks = nullptr;
+  Plan plan;
+  mesh::TetMesh mesh;
+  elastic::ElasticBody body;
+  // The immersed cells: one, at the box centre (no cell-cell contact is built).
+  coupling::ImmersedCells cells;
+  std::vector<double> x_si;             // box coordinates in metres, at samples
+  std::vector<double> last_good_x_lb;   // at the last sample
+  std::vector<int> tank_vertices;       // surface vertices near z = 0
+  std::vector<double> tank_angle;       // last angle of each, rad
+  std::vector<double> tank_unwrapped;   // accumulated angle of each, rad
+  std::vector<double> tank_mean_angle;  // per sample: mean accumulated angle
+  double energy_limit_j = 0.0;
+  double last_energy_j = 0.0;
+  int snapshot_index = 0;
+};
+
+// x_SI = X dx of the cell into run.x_si (shear_flow_observables.cc).
+void to_si(Run& run);
+
+// Observables at the current positions; appends the sample.
+ShearFlowSample take_sample(Run& run, ShearFlowResult& result, std::int64_t step);
+
+// Means over the last window of samples; the relative change of D there.
+void summarise(const Run& run, ShearFlowResult& result);
+
+// True when D over the last full window changed by less than the tolerance.
+bool is_steady(const ShearFlowResult& result, const ShearFlowNumerics& n);
+
+}  // namespace cellflow::scenes::shear_flow_detail

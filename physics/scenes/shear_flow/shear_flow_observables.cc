@@ -1,0 +1,144 @@
+// Shear-flow scene: the observables of the cell at each sample (Taylor
+// deformation, inclination, net strain, tank treading), the steady-state
+// test and the summary over the last window; Roscoe's small-Ca references.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "physics/ibm/ibm.h"
+#include "physics/observables/shape.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
+#include "physics/scenes/shear_flow/shear_flow_internal.h"
+
+namespace cellflow::scenes {
+
+namespace shear_flow_detail {
+
+void to_si(Run& run) {
+  const double dx = run.plan.units.dx_m();
+  const std::vector<double>& x = run.cells[0].positions_lattice;
+  for (std::size_t i = 0; i < x.size(); ++i) run.x_si[i] = x[i] * dx;
+}
+
+// Observables at the current positions; appends the sample.
+ShearFlowSample take_sample(Run& run, ShearFlowResult& result, std::int64_t step) {
+  to_si(run);
+  const observables::Shape shape = observables::measure_shape(run.mesh, run.x_si.data());
+  ShearFlowSample s;
+  s.index = static_cast<int>(result.samples.size());
+  s.time_step = step;
+  s.time_s = run.plan.units.time_to_si(static_cast<double>(step));
+  s.strain_units = static_cast<double>(step) * run.plan.setup.shear_rate_lattice;
+  s.taylor_deformation = shape.taylor_deformation;
+  s.inclination_deg = shape.inclination_rad * 180.0 / kPi;
+  s.net_strain = observables::net_strain(run.mesh, run.x_si.data(), 2.0 * run.params->cell.radius_m);
+  s.semi_axes_m = shape.semi_axes_m;
+  s.centroid_m = shape.centroid_m;
+  s.volume_m3 = shape.volume_m3;
+  s.elastic_energy_j = run.last_energy_j;
+
+  // Tank treading: unwrapped angle of each tracked surface vertex about the
+  // centroid in the x-y plane; the mean accumulated angle per sample.
+  double mean = 0.0;
+  for (std::size_t t = 0; t < run.tank_vertices.size(); ++t) {
+    const int v = run.tank_vertices[t];
+    const double angle =
+        std::atan2(run.x_si[3 * v + 1] - shape.centroid_m[1], run.x_si[3 * v] - shape.centroid_m[0]);
+    double delta = angle - run.tank_angle[t];
+    delta -= 2.0 * kPi * std::round(delta / (2.0 * kPi));
+    if (!result.samples.empty()) run.tank_unwrapped[t] += delta;
+    run.tank_angle[t] = angle;
+    mean += run.tank_unwrapped[t];
+  }
+  if (!run.tank_vertices.empty()) mean /= static_cast<double>(run.tank_vertices.size());
+  run.tank_mean_angle.push_back(mean);
+  const ShearFlowNumerics& n = run.params->numerics;
+  const int window =
+      std::max(1, static_cast<int>(std::lround(n.steady_window_strain / n.sample_every_strain)));
+  const int first = std::max(0, s.index - window);
+  if (s.index > first) {
+    const ShearFlowSample& start = result.samples[first];
+    // clockwise (the sense of the shear vorticity) positive
+    s.tank_treading_frequency_per_s =
+        -(run.tank_mean_angle[s.index] - run.tank_mean_angle[first]) / (s.time_s - start.time_s);
+  }
+  result.samples.push_back(s);
+  return s;
+}
+
+// Means over the last window of samples; the relative change of D there.
+void summarise(const Run& run, ShearFlowResult& result) {
+  if (result.samples.empty()) return;
+  const ShearFlowNumerics& n = run.params->numerics;
+  const int window =
+      std::max(1, static_cast<int>(std::lround(n.steady_window_strain / n.sample_every_strain)));
+  const int last = static_cast<int>(result.samples.size()) - 1;
+  const int first = std::max(0, last - window);
+  double d_sum = 0.0, incl_sum = 0.0, strain_sum = 0.0;
+  double d_min = std::numeric_limits<double>::max(), d_max = -d_min;
+  for (int i = first; i <= last; ++i) {
+    const ShearFlowSample& s = result.samples[i];
+    d_sum += s.taylor_deformation;
+    incl_sum += s.inclination_deg;
+    strain_sum += s.net_strain;
+    d_min = std::min(d_min, s.taylor_deformation);
+    d_max = std::max(d_max, s.taylor_deformation);
+  }
+  const double count = static_cast<double>(last - first + 1);
+  result.steady_taylor_deformation = d_sum / count;
+  result.steady_inclination_deg = incl_sum / count;
+  result.steady_net_strain = strain_sum / count;
+  result.steady_relative_change =
+      result.steady_taylor_deformation > 0.0 ? (d_max - d_min) / result.steady_taylor_deformation : 0.0;
+  result.tank_treading_frequency_per_s = result.samples[last].tank_treading_frequency_per_s;
+
+  // Thickness 2 a1 against the kernel width kernel_width dx.
+  const double kernel_m = ibm::kernel_width(n.ibm_kernel) * run.plan.units.dx_m();
+  result.thickness_over_kernel = 2.0 * result.samples[last].semi_axes_m[0] / kernel_m;
+  if (result.thickness_over_kernel < kMinThicknessOverKernel) {
+    result.warnings.push_back(
+        "under-resolved: the cell's thickness 2 a1 = " + num(2.0 * result.samples[last].semi_axes_m[0]) +
+        " m is " + num(result.thickness_over_kernel) + " kernel widths (below " +
+        num(kMinThicknessOverKernel) +
+        "), so D and the strain are overestimated; raise shear_flow.numerics.cells_per_radius to at least " +
+        num(std::ceil(n.cells_per_radius * kMinThicknessOverKernel / result.thickness_over_kernel)));
+  }
+}
+
+// True when D over the last full window changed by less than the tolerance.
+bool is_steady(const ShearFlowResult& result, const ShearFlowNumerics& n) {
+  if (!(n.steady_tolerance > 0.0)) return false;
+  const int window =
+      std::max(1, static_cast<int>(std::lround(n.steady_window_strain / n.sample_every_strain)));
+  const int last = static_cast<int>(result.samples.size()) - 1;
+  if (last < window) return false;
+  double d_sum = 0.0;
+  double d_min = std::numeric_limits<double>::max(), d_max = -d_min;
+  for (int i = last - window; i <= last; ++i) {
+    const double d = result.samples[i].taylor_deformation;
+    d_sum += d;
+    d_min = std::min(d_min, d);
+    d_max = std::max(d_max, d);
+  }
+  const double mean = d_sum / (window + 1);
+  // (max D - min D) / mean D < tolerance over the window
+  return mean > 0.0 && (d_max - d_min) < n.steady_tolerance * mean;
+}
+
+}  // namespace shear_flow_detail
+
+using namespace shear_flow_detail;
+
+double small_ca_taylor_deformation(double capillary_number) {
+  // D = (5/4) Ca   (Roscoe 1967, small-Ca limit; shared/validation/README.md)
+  return 1.25 * capillary_number;
+}
+
+double small_ca_inclination_deg_lambda1(double capillary_number) {
+  // theta = pi/4 - (5/4) Ca for lambda = 1   (Roscoe 1967, small-Ca limit)
+  return (kPi / 4.0 - 1.25 * capillary_number) * 180.0 / kPi;
+}
+
+}  // namespace cellflow::scenes

@@ -1,0 +1,231 @@
+// Shear-flow scene: validation of the params and the plan (units, lattice,
+// Mach and memory checks) derived from them before anything is allocated.
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "physics/scenes/shear_flow/shear_flow.h"
+#include "physics/scenes/shear_flow/shear_flow_internal.h"
+#include "physics/units/units.h"
+
+namespace cellflow::scenes {
+
+namespace shear_flow_detail {
+
+std::string num(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", v);
+  return buffer;
+}
+
+double shear_modulus(const elastic::Material& material) {
+  const elastic::Moduli m = elastic::moduli_from(material);
+  return m.mu1_pa + m.mu2_pa;
+}
+
+namespace {
+
+void add_violation(std::string& message, std::string_view text) {
+  if (!message.empty()) message += "; ";
+  message += text;
+}
+
+bool positive_finite(double v) {
+  return v > 0.0 && std::isfinite(v);
+}
+
+// Smallest box (in radii) that holds the cell and the support of its
+// immersed-boundary kernel: periodic directions need the cell and its image
+// apart by one kernel width; the wall direction needs half a kernel width
+// plus one spacing on each side.
+double min_box_periodic_radii(const ShearFlowNumerics& n) {
+  return 2.0 + ibm::kernel_width(n.ibm_kernel) / n.cells_per_radius;
+}
+double min_box_wall_radii(const ShearFlowNumerics& n) {
+  return 2.0 + (ibm::kernel_width(n.ibm_kernel) + 2.0) / n.cells_per_radius;
+}
+
+}  // namespace
+
+StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_prefix) {
+  if (Status s = validate(params, field_prefix); !s.ok()) return s;
+  const std::string prefix(field_prefix);
+  const std::string numerics_prefix = prefix + "numerics.";
+  const ShearFlowNumerics& n = params.numerics;
+  Plan plan;
+  ShearFlowSetup& setup = plan.setup;
+  const double radius = params.cell.radius_m;
+  const double eta = params.fluid_viscosity_pa_s;
+  setup.shear_modulus_pa = shear_modulus(params.cell.material);
+  if (params.capillary_number > 0.0) {
+    setup.capillary_number = params.capillary_number;
+    // gammadot = Ca mu / eta   (paper eq. 17 solved for the shear rate)
+    setup.shear_rate_per_s = params.capillary_number * setup.shear_modulus_pa / eta;
+  } else {
+    setup.shear_rate_per_s = params.shear_rate_per_s;
+    // Ca = eta gammadot / mu   (paper eq. 17)
+    setup.capillary_number = eta * params.shear_rate_per_s / setup.shear_modulus_pa;
+  }
+  const double gammadot = setup.shear_rate_per_s;
+  // Re_p = rho gammadot R^2 / eta
+  setup.reynolds_number_physical = params.fluid_density_kg_m3 * gammadot * radius * radius / eta;
+  setup.simulated_density_kg_m3 = params.fluid_density_kg_m3;
+  if (n.target_reynolds_number > 0.0 && setup.reynolds_number_physical < n.target_reynolds_number) {
+    // rho_sim = Re_target eta / (gammadot R^2)
+    setup.simulated_density_kg_m3 = n.target_reynolds_number * eta / (gammadot * radius * radius);
+  }
+  setup.reynolds_number_simulated = setup.simulated_density_kg_m3 * gammadot * radius * radius / eta;
+
+  units::LatticeChoice choice;
+  choice.cell_radius_m = radius;
+  choice.cells_per_radius = n.cells_per_radius;
+  choice.relaxation_time = n.relaxation_time;
+  choice.fluid_density_kg_m3 = setup.simulated_density_kg_m3;
+  choice.fluid_viscosity_pa_s = eta;
+  StatusOr<units::Units> made = units::make_units(choice, numerics_prefix);
+  if (!made.ok()) return made.status();
+  plan.units = *made;
+  const units::Units& u = plan.units;
+  setup.lattice_spacing_m = u.dx_m();
+  setup.time_step_s = u.dt_s();
+  setup.nx = units::nodes_along(u, n.box_x_radii * radius);
+  setup.ny = units::nodes_along(u, n.box_y_radii * radius);
+  setup.nz = units::nodes_along(u, n.box_z_radii * radius);
+  setup.box_m[0] = u.length_to_si(setup.nx);
+  setup.box_m[1] = u.length_to_si(setup.ny);
+  setup.box_m[2] = u.length_to_si(setup.nz);
+  // u_wall = H gammadot / 2 with the lattice's exact wall distance H = ny dx   (paper section 7.1)
+  setup.wall_speed_m_per_s = 0.5 * setup.box_m[1] * gammadot;
+  // Ma = u_wall / c_s, c_s = 1 / sqrt(3) in lattice units
+  setup.mach_number = std::abs(u.velocity_to_lattice(setup.wall_speed_m_per_s)) * std::sqrt(3.0);
+  setup.shear_rate_lattice = u.shear_rate_to_lattice(gammadot);
+  setup.steps_per_strain = 1.0 / setup.shear_rate_lattice;
+
+  units::StabilityLimits limits;
+  limits.max_mach = n.max_mach;
+  if (Status s = units::validate_lattice(u, choice, setup.wall_speed_m_per_s, limits, numerics_prefix);
+      !s.ok()) {
+    std::string message = s.message();
+    if (setup.simulated_density_kg_m3 > params.fluid_density_kg_m3) {
+      // With the density raised, u_wall,lb = (H / 2R) Re nu_lb / cells_per_radius.
+      message += ", or lower " + numerics_prefix + "target_reynolds_number (now " +
+                 num(n.target_reynolds_number) + ")";
+    }
+    return Status(s.code(), std::move(message));
+  }
+  setup.lattice_bytes = units::estimate_lattice_bytes(setup.nx, setup.ny, setup.nz, n.single_precision);
+  if (Status s = units::check_memory(setup.lattice_bytes, n.memory_limit_bytes, numerics_prefix); !s.ok())
+    return s;
+  return plan;
+}
+
+}  // namespace shear_flow_detail
+
+using namespace shear_flow_detail;
+
+Status validate(const ShearFlowParams& params, std::string_view field_prefix) {
+  const std::string prefix(field_prefix);
+  const std::string np = prefix + "numerics.";
+  std::string message;
+  if (Status s = validate(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
+  if (!positive_finite(params.fluid_density_kg_m3)) {
+    add_violation(message, prefix + "fluid_density_kg_m3 = " + num(params.fluid_density_kg_m3) +
+                               " must be > 0 and finite");
+  }
+  if (!positive_finite(params.fluid_viscosity_pa_s)) {
+    add_violation(message, prefix + "fluid_viscosity_pa_s = " + num(params.fluid_viscosity_pa_s) +
+                               " must be > 0 and finite");
+  }
+  const bool has_rate = params.shear_rate_per_s != 0.0;
+  const bool has_ca = params.capillary_number != 0.0;
+  if (has_rate && has_ca) {
+    add_violation(message,
+                  "set only one of " + prefix + "shear_rate_per_s and " + prefix + "capillary_number");
+  } else if (!has_rate && !has_ca) {
+    add_violation(message,
+                  "set one of " + prefix + "shear_rate_per_s (> 0) or " + prefix + "capillary_number (> 0)");
+  } else if (has_rate && !positive_finite(params.shear_rate_per_s)) {
+    add_violation(message,
+                  prefix + "shear_rate_per_s = " + num(params.shear_rate_per_s) + " must be > 0 and finite");
+  } else if (has_ca && !positive_finite(params.capillary_number)) {
+    add_violation(message,
+                  prefix + "capillary_number = " + num(params.capillary_number) + " must be > 0 and finite");
+  }
+
+  const ShearFlowNumerics& n = params.numerics;
+  const bool cpr_ok = n.cells_per_radius >= 2.0 && n.cells_per_radius <= 64.0;
+  if (!cpr_ok) {
+    add_violation(message, np + "cells_per_radius = " + num(n.cells_per_radius) + " must lie in [2, 64]");
+  }
+  auto check_box = [&](const char* name, double value, double minimum, const char* why) {
+    if (!(value >= minimum && value <= 1000.0)) {
+      add_violation(message, np + name + " = " + num(value) + " must lie in [" + num(minimum) + ", 1000] (" +
+                                 why + ")");
+    }
+  };
+  const double min_periodic = cpr_ok ? min_box_periodic_radii(n) : 2.0;
+  const double min_wall = cpr_ok ? min_box_wall_radii(n) : 2.0;
+  check_box("box_x_radii", n.box_x_radii, min_periodic,
+            "the cell diameter 2 plus one kernel width between the cell and its periodic image");
+  check_box("box_y_radii", n.box_y_radii, min_wall,
+            "the cell diameter 2 plus half a kernel width and one spacing at each wall");
+  check_box("box_z_radii", n.box_z_radii, min_periodic,
+            "the cell diameter 2 plus one kernel width between the cell and its periodic image");
+  if (!(n.relaxation_time > 0.5 && n.relaxation_time <= 3.0)) {
+    add_violation(message, np + "relaxation_time = " + num(n.relaxation_time) + " must lie in (0.5, 3]");
+  }
+  if (!(n.max_mach > 0.0 && n.max_mach <= 0.3)) {
+    add_violation(message, np + "max_mach = " + num(n.max_mach) + " must lie in (0, 0.3]");
+  }
+  if (!(n.target_reynolds_number >= 0.0 && n.target_reynolds_number <= 1.0)) {
+    add_violation(message,
+                  np + "target_reynolds_number = " + num(n.target_reynolds_number) + " must lie in [0, 1]");
+  }
+  if (!(n.steady_tolerance >= 0.0 && n.steady_tolerance < 1.0)) {
+    add_violation(message, np + "steady_tolerance = " + num(n.steady_tolerance) + " must lie in [0, 1)");
+  }
+  const bool sample_ok = n.sample_every_strain > 0.0 && n.sample_every_strain <= 1.0;
+  if (!sample_ok) {
+    // At most 1 strain unit between samples keeps the tank-treading angle
+    // increments (gammadot / 2 per unit strain) unambiguous.
+    add_violation(message,
+                  np + "sample_every_strain = " + num(n.sample_every_strain) + " must lie in (0, 1]");
+  }
+  if (!(positive_finite(n.steady_window_strain) &&
+        (!sample_ok || n.steady_window_strain >= 2.0 * n.sample_every_strain))) {
+    add_violation(message, np + "steady_window_strain = " + num(n.steady_window_strain) +
+                               " must be finite and at least 2 sample_every_strain = " +
+                               num(2.0 * n.sample_every_strain));
+  }
+  if (!(positive_finite(n.max_strain) && n.max_strain <= 1e4)) {
+    add_violation(message, np + "max_strain = " + num(n.max_strain) + " must lie in (0, 1e4]");
+  }
+  if (!(n.max_time_s >= 0.0 && std::isfinite(n.max_time_s))) {
+    add_violation(message,
+                  np + "max_time_s = " + num(n.max_time_s) + " must be >= 0 (0: no limit) and finite");
+  }
+  if (!(n.snapshot_every_strain >= 0.0 && std::isfinite(n.snapshot_every_strain))) {
+    add_violation(message,
+                  np + "snapshot_every_strain = " + num(n.snapshot_every_strain) + " must be >= 0 (0: none)");
+  }
+  if (!std::isfinite(n.memory_limit_bytes)) {
+    add_violation(message, np + "memory_limit_bytes = " + num(n.memory_limit_bytes) +
+                               " must be finite (<= 0: no limit)");
+  }
+  if (!(n.max_stiffness_ratio >= 0.0 && n.max_stiffness_ratio <= 100.0)) {
+    add_violation(message, np + "max_stiffness_ratio = " + num(n.max_stiffness_ratio) +
+                               " must lie in [0, 100] (0: default)");
+  }
+  if (n.threads < 0) add_violation(message, np + "threads = " + std::to_string(n.threads) + " must be >= 0");
+  if (message.empty()) return Status::ok_status();
+  return invalid_argument(std::move(message));
+}
+
+StatusOr<ShearFlowSetup> plan_shear_flow(const ShearFlowParams& params, std::string_view field_prefix) {
+  StatusOr<Plan> plan = make_plan(params, field_prefix);
+  if (!plan.ok()) return plan.status();
+  return plan->setup;
+}
+
+}  // namespace cellflow::scenes

@@ -1,52 +1,49 @@
 #include "client/rpc_client.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <thread>
+
+#include "rpc/rpc.h"
 
 namespace cellflow::client {
 
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
-namespace {
-
-std::shared_ptr<grpc::Channel> make_channel(const std::string& server) {
-  grpc::ChannelArguments args;
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
-  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
-  return grpc::CreateCustomChannel(server, grpc::InsecureChannelCredentials(), args);
-}
-
-}  // namespace
-
-Client::Client(ClientOptions options) : Client(options, make_channel(options.server)) {}
+Client::Client(ClientOptions options) : Client(options, rpc::make_channel(options.server)) {}
 
 Client::Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel)
     : options_(std::move(options)),
       channel_(std::move(channel)),
       stub_(v1::CellflowService::NewStub(channel_)) {}
 
+namespace {
+
+// The deadline of each unary call; a timeout_s <= 0 expires at once (as it
+// always did), it does not mean "no deadline".
+std::chrono::milliseconds call_timeout(const ClientOptions& options) {
+  return std::max(std::chrono::milliseconds(1),
+                  std::chrono::milliseconds(static_cast<std::int64_t>(options.timeout_s * 1000)));
+}
+
+}  // namespace
+
 void Client::set_deadline(grpc::ClientContext& context) const {
-  context.set_deadline(std::chrono::system_clock::now() +
-                       std::chrono::milliseconds(static_cast<std::int64_t>(options_.timeout_s * 1000)));
+  rpc::set_deadline(context, call_timeout(options_));
 }
 
 grpc::Status Client::with_retry(const std::function<grpc::Status(grpc::ClientContext&)>& call) const {
-  auto wait = 250ms;
-  grpc::Status status;
-  for (int attempt = 1;; ++attempt) {
-    grpc::ClientContext context;
-    set_deadline(context);
-    status = call(context);
-    // Only UNAVAILABLE is safe to retry: the call did not reach the service.
-    // (SubmitJob is idempotent anyway when it carries a request_id.)
-    if (status.error_code() != grpc::StatusCode::UNAVAILABLE || attempt >= options_.max_attempts)
-      return status;
-    std::this_thread::sleep_for(wait);
-    wait *= 2;
-  }
+  // Only UNAVAILABLE is retried: the call did not reach the service.
+  // (SubmitJob is idempotent anyway when it carries a request_id.)
+  rpc::RetryOptions retry;
+  retry.deadline = call_timeout(options_);
+  retry.max_attempts = std::max(1, options_.max_attempts);
+  retry.initial_backoff = 250ms;
+  retry.max_backoff = 0ms;  // 0.25, 0.5, 1, 2 s, ...
+  return rpc::call_with_retry(retry, call);
 }
 
 grpc::Status Client::submit(const v1::SubmitJobRequest& request, v1::SubmitJobResponse* response) {
@@ -71,7 +68,7 @@ grpc::Status Client::cancel(const std::string& job_id, v1::Job* job) {
 
 grpc::Status Client::watch(const std::string& job_id, std::int64_t after_sequence,
                            const std::function<bool(const v1::JobEvent&)>& on_event) {
-  auto wait = 100ms;
+  rpc::Backoff backoff(100ms, 2000ms);
   auto unreachable_since = Clock::now();
   while (true) {
     grpc::ClientContext context;
@@ -83,7 +80,7 @@ grpc::Status Client::watch(const std::string& job_id, std::int64_t after_sequenc
     bool stopped = false;
     while (reader->Read(&event)) {
       unreachable_since = Clock::now();
-      wait = 100ms;
+      backoff.reset();
       after_sequence = event.sequence();
       if (!on_event(event)) {
         stopped = true;
@@ -93,19 +90,18 @@ grpc::Status Client::watch(const std::string& job_id, std::int64_t after_sequenc
     }
     const grpc::Status status = reader->Finish();
     if (stopped) return {grpc::StatusCode::CANCELLED, "stopped by the caller"};
-    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return status;
+    if (!rpc::retryable(status)) return status;
     if (Clock::now() - unreachable_since >
         std::chrono::milliseconds(static_cast<std::int64_t>(options_.reconnect_s * 1000))) {
       return status;
     }
-    std::this_thread::sleep_for(wait);
-    wait = std::min(wait * 2, std::chrono::milliseconds(2000));
+    std::this_thread::sleep_for(backoff.next());
   }
 }
 
 grpc::Status Client::download(const std::string& job_id, const std::string& path) {
   const std::string partial = path + ".part";
-  auto wait = 250ms;
+  rpc::Backoff backoff(250ms, 0ms);  // uncapped: 0.25, 0.5, 1 s, ...
   for (int attempt = 1;; ++attempt) {
     std::ofstream out(partial, std::ios::binary | std::ios::trunc);
     if (!out) return {grpc::StatusCode::INVALID_ARGUMENT, "cannot write " + partial};
@@ -137,10 +133,8 @@ grpc::Status Client::download(const std::string& job_id, const std::string& path
       return status;
     }
     std::remove(partial.c_str());
-    if (status.error_code() != grpc::StatusCode::UNAVAILABLE || attempt >= options_.max_attempts)
-      return status;
-    std::this_thread::sleep_for(wait);
-    wait *= 2;
+    if (!rpc::retryable(status) || attempt >= options_.max_attempts) return status;
+    std::this_thread::sleep_for(backoff.next());
   }
 }
 

@@ -43,7 +43,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  cellflow::worker::Worker worker(options);
+  cellflow::worker::Worker worker(options, cellflow::worker::Worker::connect(options.server_address));
   std::thread([&worker, signals] {
     int received = 0;
     sigwait(&signals, &received);

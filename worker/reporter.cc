@@ -4,6 +4,8 @@
 
 #include <vector>
 
+#include "rpc/rpc.h"
+
 namespace cellflow::worker {
 
 using Clock = std::chrono::steady_clock;
@@ -50,7 +52,7 @@ bool Reporter::close(std::chrono::milliseconds timeout) {
 }
 
 void Reporter::run() {
-  auto backoff = std::chrono::milliseconds(100);
+  rpc::Backoff backoff(std::chrono::milliseconds(100), std::chrono::milliseconds(2000));
   while (true) {
     {
       std::lock_guard lock(mutex_);
@@ -141,8 +143,7 @@ void Reporter::run() {
     }
     spdlog::warn("{}: report stream broke ({}); reconnecting", lease_.job_id(), status.error_message());
     std::unique_lock lock(mutex_);
-    changed_.wait_for(lock, backoff, [&] { return finished_locked(); });
-    backoff = std::min(backoff * 2, std::chrono::milliseconds(2000));
+    changed_.wait_for(lock, backoff.next(), [&] { return finished_locked(); });
   }
   std::lock_guard lock(mutex_);
   thread_done_ = true;

@@ -9,6 +9,7 @@
 #include <thread>
 #include <vector>
 
+#include "rpc/rpc.h"
 #include "worker/job_runner.h"
 #include "worker/reporter.h"
 
@@ -26,28 +27,24 @@ std::string host_name() {
   return buffer;
 }
 
-std::chrono::milliseconds seconds_to_ms(double s, std::chrono::milliseconds fallback) {
-  return s > 0 ? std::chrono::milliseconds(static_cast<std::int64_t>(s * 1000)) : fallback;
-}
-
-bool retryable(const grpc::Status& status) {
-  return status.error_code() == grpc::StatusCode::UNAVAILABLE;
-}
+using rpc::seconds_to_ms;
 
 }  // namespace
 
-Worker::Worker(WorkerOptions options) : options_(std::move(options)) {
+std::unique_ptr<v1::WorkerService::StubInterface> Worker::connect(const std::string& address) {
+  // The channel reconnects quickly after a server restart (rpc::ChannelOptions).
+  return v1::WorkerService::NewStub(rpc::make_channel(address));
+}
+
+Worker::Worker(WorkerOptions options) : Worker(options, connect(options.server_address)) {}
+
+Worker::Worker(WorkerOptions options, std::unique_ptr<v1::WorkerService::StubInterface> stub)
+    : options_(std::move(options)), stub_(std::move(stub)) {
   id_ = options_.name + "@" + host_name() + ":" + std::to_string(::getpid());
   if (options_.scratch_dir.empty()) {
     options_.scratch_dir =
         (fs::temp_directory_path() / ("cellflow-worker-" + std::to_string(::getpid()))).string();
   }
-  grpc::ChannelArguments args;
-  // Reconnect quickly after a server restart.
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
-  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
-  stub_ = v1::WorkerService::NewStub(
-      grpc::CreateCustomChannel(options_.server_address, grpc::InsecureChannelCredentials(), args));
 }
 
 bool Worker::sleep_unless_stopped(std::chrono::milliseconds duration) {
@@ -69,7 +66,7 @@ int Worker::run() {
   spdlog::info("worker {} serving {} (scratch {})", id_, options_.server_address, options_.scratch_dir);
   int attempts = 0;
   auto idle_since = Clock::now();
-  auto backoff = 100ms;
+  rpc::Backoff backoff(100ms, 5000ms);
   while (!stop_.load()) {
     if (options_.max_jobs > 0 && attempts >= options_.max_jobs) break;
     if (options_.idle_exit_s > 0 && Clock::now() - idle_since > seconds_to_ms(options_.idle_exit_s, 0ms)) {
@@ -83,18 +80,17 @@ int Worker::run() {
     v1::LeaseJobResponse response;
     grpc::ClientContext context;
     const auto asked = Clock::now();
-    context.set_deadline(std::chrono::system_clock::now() + seconds_to_ms(request.wait_s() + 10.0, 10s));
+    rpc::set_deadline(context, seconds_to_ms(request.wait_s() + 10.0, 10s));
     const grpc::Status status = stub_->LeaseJob(&context, request, &response);
     if (!status.ok()) {
       if (status.error_code() != grpc::StatusCode::UNAVAILABLE &&
           status.error_code() != grpc::StatusCode::DEADLINE_EXCEEDED) {
         spdlog::error("LeaseJob: {} ({})", status.error_message(), static_cast<int>(status.error_code()));
       }
-      sleep_unless_stopped(backoff);
-      backoff = std::min(backoff * 2, std::chrono::milliseconds(5000));
+      sleep_unless_stopped(backoff.next());
       continue;
     }
-    backoff = 100ms;
+    backoff.reset();
     if (!response.found()) {
       // A server that answers at once (it is shutting down) is not polled in a tight loop.
       if (Clock::now() - asked < 100ms) sleep_unless_stopped(250ms);
@@ -184,7 +180,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     request.set_reason("worker " + id_ + " stopped");
     v1::FinishJobResponse response;
     grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() + 5s);
+    rpc::set_deadline(context, 5s);
     const grpc::Status status = stub_->ReleaseJob(&context, request, &response);
     spdlog::info("{}: handed back ({})", job, status.ok() ? "ok" : status.error_message());
     cleanup();
@@ -194,11 +190,21 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   // Upload the result (also the partial one of a failed run), then end the attempt.
   const bool have_file = outcome.result_written || (!outcome.status.ok() && fs::exists(temporary, ignored));
   if (have_file) fs::rename(temporary, result, ignored);
-  auto upload = [&]() -> grpc::Status {
+  // The upload and the terminal calls are tried again while the server is
+  // UNAVAILABLE, for at most the lease time (waits of 0.1, 0.2, ... 2 s).
+  rpc::RetryOptions retry;
+  retry.max_attempts = 0;
+  retry.give_up_after = ttl;
+  retry.initial_backoff = 100ms;
+  retry.max_backoff = 2000ms;
+  rpc::RetryOptions upload_retry = retry;
+  upload_retry.deadline = 10min;
+  rpc::RetryOptions end_retry = retry;
+  end_retry.deadline = 30s;
+
+  auto upload = [&](grpc::ClientContext& context) -> grpc::Status {
     std::ifstream in(result, std::ios::binary);
     if (!in) return {grpc::StatusCode::NOT_FOUND, "no result file"};
-    grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() + 10min);
     v1::UploadResultResponse response;
     auto writer = stub_->UploadResult(&context, &response);
     std::vector<char> buffer(1 << 20);
@@ -219,39 +225,31 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     writer->WritesDone();
     return writer->Finish();
   };
-  // Calls `rpc` until it succeeds or fails for a reason other than UNAVAILABLE,
-  // for at most the lease time.
-  auto with_retry = [&](const std::function<grpc::Status()>& rpc) {
-    const auto give_up = Clock::now() + ttl;
-    auto wait = 100ms;
-    grpc::Status status;
-    while (true) {
-      status = rpc();
-      if (status.ok() || !retryable(status) || Clock::now() > give_up) return status;
-      std::this_thread::sleep_for(wait);
-      wait = std::min(wait * 2, std::chrono::milliseconds(2000));
-    }
-  };
-  auto end_call = [&](auto method, const auto& request) {
-    return with_retry([&] {
+  auto upload_with_retry = [&] { return rpc::call_with_retry(upload_retry, upload); };
+  auto finish = [&](const v1::FinishJobRequest& request) {
+    return rpc::call_with_retry(end_retry, [&](grpc::ClientContext& context) {
       v1::FinishJobResponse response;
-      grpc::ClientContext context;
-      context.set_deadline(std::chrono::system_clock::now() + 30s);
-      return ((*stub_).*method)(&context, request, &response);
+      return stub_->FinishJob(&context, request, &response);
+    });
+  };
+  auto fail = [&](const v1::FailJobRequest& request) {
+    return rpc::call_with_retry(end_retry, [&](grpc::ClientContext& context) {
+      v1::FinishJobResponse response;
+      return stub_->FailJob(&context, request, &response);
     });
   };
 
   grpc::Status uploaded =
-      have_file ? with_retry(upload) : grpc::Status(grpc::StatusCode::NOT_FOUND, "no result");
+      have_file ? upload_with_retry() : grpc::Status(grpc::StatusCode::NOT_FOUND, "no result");
   if (outcome.status.ok()) {
     if (!uploaded.ok()) spdlog::error("{}: upload failed: {}", job, uploaded.error_message());
     v1::FinishJobRequest request;
     *request.mutable_lease() = lease;
-    grpc::Status finished = end_call(&v1::WorkerService::Stub::FinishJob, request);
+    grpc::Status finished = finish(request);
     if (finished.error_code() == grpc::StatusCode::FAILED_PRECONDITION &&
         finished.error_message().find("no result uploaded") != std::string::npos) {
       // The upload was lost (e.g. across a server restart): once more.
-      if (with_retry(upload).ok()) finished = end_call(&v1::WorkerService::Stub::FinishJob, request);
+      if (upload_with_retry().ok()) finished = finish(request);
     }
     spdlog::info("{}: finished {} ({} sample(s), {:.2f} s)", job,
                  finished.ok() ? "ok" : finished.error_message(), outcome.samples,
@@ -260,7 +258,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     v1::FailJobRequest request;
     *request.mutable_lease() = lease;
     request.set_reason(outcome.status.to_string());
-    const grpc::Status failed = end_call(&v1::WorkerService::Stub::FailJob, request);
+    const grpc::Status failed = fail(request);
     spdlog::warn("{}: failed: {} (reported: {})", job, outcome.status.to_string(),
                  failed.ok() ? "ok" : failed.error_message());
   }

@@ -1,10 +1,14 @@
 // cellflow-worker: leases one job at a time from the server, runs it
 // (worker/job_runner.h), streams its samples, progress and heartbeats
 // (worker/reporter.h), uploads the HDF5 result and finishes the attempt with
-// its lease token. It shares nothing with the server but the address.
+// its lease token. It shares nothing with the server but the address. Every
+// call to the server goes through one v1::WorkerService::StubInterface: the
+// real stub over a channel (rpc/rpc.h) in production, a fake in tests.
 #pragma once
 
 #include <atomic>
+#include <chrono>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -27,7 +31,14 @@ struct WorkerOptions {
 
 class Worker {
  public:
+  // Connects to options.server_address: Worker(options, connect(options.server_address)).
   explicit Worker(WorkerOptions options);
+  // Makes every call through `stub` (which must not be null); options.server_address is
+  // then only named in the logs.
+  Worker(WorkerOptions options, std::unique_ptr<v1::WorkerService::StubInterface> stub);
+  // The production stub: v1::WorkerService::NewStub over rpc::make_channel(address).
+  static std::unique_ptr<v1::WorkerService::StubInterface> connect(const std::string& address);
+
   // Runs until stop() or the max_jobs / idle_exit_s limits; returns the exit code.
   int run();
   // Asks the worker to stop: a running job is handed back to the queue. Thread-safe.
@@ -42,7 +53,7 @@ class Worker {
 
   WorkerOptions options_;
   std::string id_;
-  std::unique_ptr<v1::WorkerService::Stub> stub_;
+  std::unique_ptr<v1::WorkerService::StubInterface> stub_;
   jobs::SceneRegistry registry_;
   std::atomic<bool> stop_{false};
 };

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "physics/elastic/elastic_body.h"
+#include "physics/mesh/tet_colouring.h"
 #include "tests/elastic/box_mesh.h"
 
 namespace cellflow::elastic {
@@ -134,7 +135,7 @@ const ColouredScene& coloured_scene(double w) {
   auto& slot = scenes[w];
   if (!slot) {
     const ElasticBody& body = scene(w).body;
-    const TetColouring colouring = colour_tets(body.tets, body.num_vertices);
+    const mesh::TetColouring colouring = mesh::colour_tets(body.tets, body.num_vertices);
     slot = std::make_unique<ColouredScene>();
     ElasticBody& permuted = slot->body;
     permuted.num_vertices = body.num_vertices;

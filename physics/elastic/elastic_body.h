@@ -11,6 +11,7 @@
 
 #include "physics/core/status.h"
 #include "physics/elastic/material.h"
+#include "physics/mesh/tet_colouring.h"
 #include "physics/mesh/tet_mesh.h"
 
 namespace cellflow::elastic {
@@ -82,21 +83,6 @@ struct VolumeRatioMinimum {
 };
 VolumeRatioMinimum min_volume_ratio(const ElasticBody& body, const double* positions_m);
 
-// Groups of `group_size` consecutive tetrahedra (group g = tets [g s, g s + s))
-// coloured such that no two groups of one colour share a vertex (greedy, in
-// order): a colour can be scattered in parallel without races. Groups of
-// colour c are order[offsets[c] .. offsets[c + 1]). With group_size 1 the
-// groups are single tets; larger groups give fewer colours (fewer barriers)
-// and keep each thread streaming through consecutive tets.
-struct TetColouring {
-  std::int64_t group_size = 1;
-  std::vector<std::int32_t> order;
-  std::vector<std::int64_t> offsets;
-  std::size_t num_colours() const { return offsets.empty() ? 0 : offsets.size() - 1; }
-};
-TetColouring colour_tets(std::span<const std::int32_t> tets, std::size_t num_vertices,
-                         std::int64_t group_size = 1);
-
 // Tangent stiffness K = d^2 E / dy dy (3 nv x 3 nv, symmetric) at y. The
 // pattern is fixed by the connectivity; TangentAssembler reuses it.
 //
@@ -152,7 +138,7 @@ class TangentAssembler {
   std::vector<double> g_rows_, vertex_coefficient_;
   mutable std::vector<double> vertex_scratch_;
   std::vector<double> tet_pressure_;  // kNodalAverage scratch: mean nodal pressure per tet
-  TetColouring colouring_;            // race-free parallel scatter, groups of consecutive tets
+  mesh::TetColouring colouring_;      // race-free parallel scatter, groups of consecutive tets
   std::vector<double> group_energy_;  // per colouring group, summed in order
   int threads_ = 0;
 };

@@ -2,7 +2,7 @@
 // the 12x12 tangent block all come from the same stages (deformation_gradient,
 // inverse_cube_root, stress_from_gradient, then forces_from_stress and
 // stress_derivative), so the energy, its gradient and its Hessian cannot drift
-// apart. The force loop (elastic_body.cc) runs the stages over blocks of tets;
+// apart. The force loop (elastic_forces.cc) runs the stages over blocks of tets;
 // the tangent runs them tet by tet (tet_stress, tet_tangent).
 //
 // Local vertex a = 0..3 of a tetrahedron is the paper's vertex a+1; local vertex
@@ -92,7 +92,7 @@ inline double deformation_gradient(const double* b, const double* y0, const doub
 // Stage 3: invariants, energy density and nominal stress from s.f, s.cof,
 // s.det_f (> 0) and J^-1/3 (stage 2: inverse_cube_root). `pressure` adds
 // pressure cof(F) to the stress and nothing to the energy density (the
-// nodal-averaged volumetric energy is summed per vertex, elastic_body.cc).
+// nodal-averaged volumetric energy is summed per vertex, elastic_forces.cc).
 template <bool kMooneyRivlin>
 inline void stress_from_gradient(double mu1, double mu2, double kappa, double j_m13, TetStress& s,
                                  double pressure = 0.0) {
@@ -277,9 +277,13 @@ inline void stress_derivative(const TetParams& p, const TetStress& s, double* d2
 // K_(a i),(b j) = V0 dF_kl/dy_i^a d^2U/dF_kl dF_pq dF_pq/dy_j^b = V0 B_al (d^2U/dF dF)_(il),(jm) B_bm
 // for a, b = 1..3, and rows/columns of vertex 4 as minus the sums over a (b).
 // Returns false for J <= 0. Row-major: block[12 (3 a + i) + 3 b + j].
+// Forced inline into the scatter of the tangent assembly (tangent_assembler.cc):
+// GCC inlined it there while the assembly shared a source file with the force
+// loop, and no longer does on its own in the smaller file.
 template <bool kMooneyRivlin>
-inline bool tet_tangent(const TetParams& p, const double* y0, const double* y1, const double* y2,
-                        const double* y3, double* forces, double* block, double& energy_j) {
+inline __attribute__((always_inline)) bool tet_tangent(const TetParams& p, const double* y0, const double* y1,
+                                                       const double* y2, const double* y3, double* forces,
+                                                       double* block, double& energy_j) {
   TetStress s;
   if (!tet_stress<kMooneyRivlin>(p, y0, y1, y2, y3, s)) return false;
   forces_from_stress(p.b_matrix, p.ref_volume_m3, s.stress, forces);

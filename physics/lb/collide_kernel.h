@@ -1,5 +1,5 @@
 // The per-node TRT collision with Guo forcing, vectorised across a run of
-// consecutive x nodes. Internal to cellflow::lb (included by fluid.cc and the
+// consecutive x nodes. Internal to cellflow::lb (included by fluid_step.cc and the
 // benchmark's kernel check only); the public API is physics/lb/fluid.h.
 //
 // Populations are deviations h_i = f_i - w_i. For one node:
@@ -13,7 +13,7 @@
 #include "physics/lb/d3q19.h"
 
 // Everything the row loops call is forced inline, so that it is compiled for
-// the instruction set of the row loop it ends up in (fluid.cc builds one row
+// the instruction set of the row loop it ends up in (fluid_step.cc builds one row
 // loop per SIMD level with __attribute__((target)); no out-of-line copy of a
 // kernel function can be shared between levels).
 #define CELLFLOW_LB_INLINE inline __attribute__((always_inline))

@@ -1,184 +1,43 @@
-#include "io/h5md.h"
+// H5mdWriter: creation of an H5MD 1.1 file (h5md, author and creator
+// metadata), tetrahedral connectivity, time-dependent elements (step, time,
+// value series) for positions and observables with the 2-D position copies
+// of the XDMF sidecar, parameters, scalars and strings, vector fields on a
+// uniform grid, flush and close.
+#include <hdf5.h>
 
 #include <algorithm>
 #include <array>
 #include <cstdio>
 #include <map>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "io/h5_handle.h"
+#include "io/h5md.h"
+#include "io/h5md_internal.h"
 
 namespace cellflow::io {
 
+using detail::append_record;
+using detail::create_group;
+using detail::create_series;
+using detail::h5_error;
 using detail::Handle;
 using detail::path_exists;
+using detail::Series;
+using detail::string_type;
+using detail::write_int_attribute;
+using detail::write_string_attribute;
+using detail::write_string_dataset;
 
 namespace {
-
-Status h5_error(const std::string& what, const std::string& path) {
-  return {StatusCode::kInternal, "HDF5: " + what + " (" + path + ")"};
-}
-
-// A fixed-length, null-terminated string type of `size` bytes.
-Handle string_type(std::size_t size) {
-  Handle type(H5Tcopy(H5T_C_S1));
-  H5Tset_size(type.get(), std::max<std::size_t>(size, 1));
-  H5Tset_strpad(type.get(), H5T_STR_NULLTERM);
-  return type;
-}
-
-Status write_string_attribute(hid_t object, const char* name, std::string_view value) {
-  Handle type = string_type(value.size() + 1);
-  Handle space(H5Screate(H5S_SCALAR));
-  std::string buffer(value);
-  Handle attr(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT));
-  if (!attr.valid() || H5Awrite(attr.get(), type.get(), buffer.c_str()) < 0) {
-    return h5_error(std::string("writing attribute ") + name, "");
-  }
-  return {};
-}
-
-Status write_int_attribute(hid_t object, const char* name, std::span<const int> values) {
-  hsize_t dims[1] = {values.size()};
-  Handle space(values.size() == 1 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, dims, nullptr));
-  Handle attr(H5Acreate2(object, name, H5T_STD_I32LE, space.get(), H5P_DEFAULT, H5P_DEFAULT));
-  if (!attr.valid() || H5Awrite(attr.get(), H5T_NATIVE_INT, values.data()) < 0) {
-    return h5_error(std::string("writing attribute ") + name, "");
-  }
-  return {};
-}
-
-Handle create_group(hid_t file, const std::string& path) {
-  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
-  H5Pset_create_intermediate_group(lcpl.get(), 1);
-  return Handle(H5Gcreate2(file, path.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
-}
-
-// An extendable dataset whose first dimension grows by one record per append.
-struct Series {
-  Handle dataset;
-  std::vector<hsize_t> record_dims;  // dims of one record (may be empty: scalar)
-  hsize_t records = 0;
-  hid_t memory_type = H5I_INVALID_HID;
-};
-
-StatusOr<Series> create_series(hid_t file, const std::string& path, hid_t file_type, hid_t memory_type,
-                               std::vector<hsize_t> record_dims) {
-  const int rank = 1 + static_cast<int>(record_dims.size());
-  std::vector<hsize_t> dims(rank, 0), max_dims(rank), chunk(rank);
-  max_dims[0] = H5S_UNLIMITED;
-  hsize_t record_size = 1;
-  for (std::size_t i = 0; i < record_dims.size(); ++i) {
-    dims[i + 1] = max_dims[i + 1] = chunk[i + 1] = record_dims[i];
-    record_size *= record_dims[i];
-  }
-  // 64 small records (512 B of doubles) per chunk: curves have tens to
-  // thousands of points; one record per chunk for position frames.
-  chunk[0] = std::max<hsize_t>(1, 64 / std::max<hsize_t>(record_size, 1));
-  Handle space(H5Screate_simple(rank, dims.data(), max_dims.data()));
-  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE));
-  H5Pset_chunk(dcpl.get(), rank, chunk.data());
-  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
-  H5Pset_create_intermediate_group(lcpl.get(), 1);
-  Series series;
-  series.dataset =
-      Handle(H5Dcreate2(file, path.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT));
-  if (!series.dataset.valid()) return h5_error("creating dataset " + path, "");
-  series.record_dims = std::move(record_dims);
-  series.memory_type = memory_type;
-  return series;
-}
-
-Status append_record(Series& series, const void* data) {
-  const int rank = 1 + static_cast<int>(series.record_dims.size());
-  std::vector<hsize_t> dims(rank), start(rank, 0), count(rank);
-  dims[0] = series.records + 1;
-  start[0] = series.records;
-  count[0] = 1;
-  for (std::size_t i = 0; i < series.record_dims.size(); ++i)
-    dims[i + 1] = count[i + 1] = series.record_dims[i];
-  if (H5Dset_extent(series.dataset.get(), dims.data()) < 0) return h5_error("extending dataset", "");
-  Handle file_space(H5Dget_space(series.dataset.get()));
-  H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr);
-  Handle memory_space(H5Screate_simple(rank, count.data(), nullptr));
-  if (H5Dwrite(series.dataset.get(), series.memory_type, memory_space.get(), file_space.get(), H5P_DEFAULT,
-               data) < 0) {
-    return h5_error("writing record", "");
-  }
-  ++series.records;
-  return {};
-}
 
 // step, time and value of one H5MD time-dependent element.
 struct Element {
   Series step, time, value;
   std::size_t width = 0;
 };
-
-StatusOr<std::vector<hsize_t>> dataset_dims(hid_t file, const std::string& path) {
-  if (!path_exists(file, path)) return Status(StatusCode::kNotFound, "no dataset " + path);
-  Handle dataset(H5Dopen2(file, path.c_str(), H5P_DEFAULT));
-  if (!dataset.valid()) return Status(StatusCode::kNotFound, "cannot open dataset " + path);
-  Handle space(H5Dget_space(dataset.get()));
-  const int rank = H5Sget_simple_extent_ndims(space.get());
-  std::vector<hsize_t> dims(std::max(rank, 0));
-  H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
-  return dims;
-}
-
-template <class T>
-Status read_all(hid_t file, const std::string& path, hid_t memory_type, std::vector<T>& out) {
-  auto dims = dataset_dims(file, path);
-  if (!dims.ok()) return dims.status();
-  hsize_t total = 1;
-  for (hsize_t d : *dims) total *= d;
-  out.resize(total);
-  Handle dataset(H5Dopen2(file, path.c_str(), H5P_DEFAULT));
-  if (total == 0) return {};
-  if (H5Dread(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0) {
-    return h5_error("reading " + path, "");
-  }
-  return {};
-}
-
-StatusOr<Handle> open_read_only(const std::string& path) {
-  hid_t file = H5I_INVALID_HID;
-  H5E_BEGIN_TRY {
-    file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  }
-  H5E_END_TRY;
-  if (file < 0) return Status(StatusCode::kNotFound, "cannot open HDF5 file " + path);
-  return Handle(file);
-}
-
-// A scalar string dataset at `path` (intermediate groups created).
-StatusOr<Handle> write_string_dataset(hid_t file, const std::string& path, std::string_view value) {
-  if (path_exists(file, path)) return Status(StatusCode::kFailedPrecondition, path + " already written");
-  Handle type = string_type(value.size() + 1);
-  Handle space(H5Screate(H5S_SCALAR));
-  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
-  H5Pset_create_intermediate_group(lcpl.get(), 1);
-  Handle dataset(
-      H5Dcreate2(file, path.c_str(), type.get(), space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
-  std::string buffer(value);
-  if (!dataset.valid() ||
-      H5Dwrite(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.c_str()) < 0) {
-    return h5_error("writing " + path, "");
-  }
-  return dataset;
-}
-
-StatusOr<std::string> read_string_dataset(hid_t file, const std::string& path) {
-  if (!path_exists(file, path)) return Status(StatusCode::kNotFound, "no " + path);
-  Handle dataset(H5Dopen2(file, path.c_str(), H5P_DEFAULT));
-  Handle type(H5Dget_type(dataset.get()));
-  if (H5Tget_class(type.get()) != H5T_STRING) return Status(StatusCode::kInternal, path + " is not a string");
-  std::string buffer(H5Tget_size(type.get()), '\0');
-  if (H5Dread(dataset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.data()) < 0) {
-    return h5_error("reading " + path, "");
-  }
-  buffer.resize(buffer.find('\0') == std::string::npos ? buffer.size() : buffer.find('\0'));
-  return buffer;
-}
 
 }  // namespace
 
@@ -490,117 +349,6 @@ Status H5mdWriter::close() {
   impl_->fields.clear();
   impl_->file.reset();
   return status;
-}
-
-StatusOr<TimeSeries> read_observable(const std::string& path, std::string_view name) {
-  auto file = open_read_only(path);
-  if (!file.ok()) return file.status();
-  const std::string base = "/observables/" + std::string(name);
-  TimeSeries series;
-  if (Status s = read_all(file->get(), base + "/step", H5T_NATIVE_INT64, series.step); !s.ok()) return s;
-  if (Status s = read_all(file->get(), base + "/time", H5T_NATIVE_DOUBLE, series.time); !s.ok()) return s;
-  if (Status s = read_all(file->get(), base + "/value", H5T_NATIVE_DOUBLE, series.value); !s.ok()) return s;
-  auto dims = dataset_dims(file->get(), base + "/value");
-  series.width = dims->size() > 1 ? static_cast<int>((*dims)[1]) : 1;
-  if (series.step.size() != series.time.size() || series.value.size() != series.step.size() * series.width) {
-    return Status(StatusCode::kInternal,
-                  "observable " + std::string(name) + ": step/time/value lengths differ");
-  }
-  return series;
-}
-
-StatusOr<std::vector<std::string>> list_observables(const std::string& path) {
-  auto file = open_read_only(path);
-  if (!file.ok()) return file.status();
-  if (!path_exists(file->get(), "/observables")) return std::vector<std::string>{};
-  Handle group(H5Gopen2(file->get(), "/observables", H5P_DEFAULT));
-  H5G_info_t info;
-  H5Gget_info(group.get(), &info);
-  std::vector<std::string> names;
-  for (hsize_t i = 0; i < info.nlinks; ++i) {
-    const ssize_t size =
-        H5Lget_name_by_idx(group.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT);
-    std::string name(static_cast<std::size_t>(size), '\0');
-    H5Lget_name_by_idx(group.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(), name.size() + 1,
-                       H5P_DEFAULT);
-    names.push_back(name);
-  }
-  std::sort(names.begin(), names.end());
-  return names;
-}
-
-StatusOr<std::string> read_parameters_json(const std::string& path) {
-  return read_string(path, "/parameters/job_spec_json");
-}
-
-StatusOr<std::string> read_string(const std::string& path, std::string_view dataset) {
-  auto file = open_read_only(path);
-  if (!file.ok()) return file.status();
-  return read_string_dataset(file->get(), std::string(dataset));
-}
-
-StatusOr<double> read_scalar(const std::string& path, std::string_view dataset) {
-  auto file = open_read_only(path);
-  if (!file.ok()) return file.status();
-  const std::string name(dataset);
-  auto dims = dataset_dims(file->get(), name);
-  if (!dims.ok()) return dims.status();
-  if (!dims->empty()) return Status(StatusCode::kInternal, name + " is not a scalar");
-  double value = 0.0;
-  Handle handle(H5Dopen2(file->get(), name.c_str(), H5P_DEFAULT));
-  if (H5Dread(handle.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0) {
-    return h5_error("reading " + name, path);
-  }
-  return value;
-}
-
-StatusOr<int> count_field_frames(const std::string& path, std::string_view name) {
-  auto file = open_read_only(path);
-  if (!file.ok()) return file.status();
-  const std::string step = "/fields/" + std::string(name) + "/step";
-  if (!path_exists(file->get(), step)) return 0;
-  auto dims = dataset_dims(file->get(), step);
-  if (!dims.ok()) return dims.status();
-  return static_cast<int>((*dims)[0]);
-}
-
-StatusOr<int> count_position_frames(const std::string& path, std::string_view group) {
-  auto file = open_read_only(path);
-  if (!file.ok()) return file.status();
-  auto dims = dataset_dims(file->get(), "/particles/" + std::string(group) + "/position/step");
-  if (!dims.ok()) return dims.status();
-  return static_cast<int>((*dims)[0]);
-}
-
-StatusOr<PositionFrame> read_position_frame(const std::string& path, std::string_view group, int frame) {
-  auto file = open_read_only(path);
-  if (!file.ok()) return file.status();
-  const std::string base = "/particles/" + std::string(group) + "/position";
-  std::vector<std::int64_t> steps;
-  std::vector<double> times;
-  if (Status s = read_all(file->get(), base + "/step", H5T_NATIVE_INT64, steps); !s.ok()) return s;
-  if (Status s = read_all(file->get(), base + "/time", H5T_NATIVE_DOUBLE, times); !s.ok()) return s;
-  if (frame < 0 || static_cast<std::size_t>(frame) >= steps.size()) {
-    return Status(StatusCode::kNotFound, "no position frame " + std::to_string(frame));
-  }
-  auto dims = dataset_dims(file->get(), base + "/value");
-  if (!dims.ok() || dims->size() != 3)
-    return Status(StatusCode::kInternal, "position value is not [n][N][3]");
-  PositionFrame out;
-  out.step = steps[frame];
-  out.time = times[frame];
-  out.positions_m.resize((*dims)[1] * 3);
-  Handle dataset(H5Dopen2(file->get(), (base + "/value").c_str(), H5P_DEFAULT));
-  Handle file_space(H5Dget_space(dataset.get()));
-  hsize_t start[3] = {static_cast<hsize_t>(frame), 0, 0};
-  hsize_t count[3] = {1, (*dims)[1], 3};
-  H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
-  Handle memory_space(H5Screate_simple(3, count, nullptr));
-  if (H5Dread(dataset.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
-              out.positions_m.data()) < 0) {
-    return h5_error("reading position frame", path);
-  }
-  return out;
 }
 
 }  // namespace cellflow::io

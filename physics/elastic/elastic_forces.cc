@@ -1,0 +1,262 @@
+// Energy and vertex forces of an ElasticBody: the blocked per-tet loop over
+// the stages of tet_kernel.h, the nodal-averaged volumetric pressures, the
+// parallel split of the tets with private force buffers (add_elastic_forces,
+// add_elastic_forces_of_range, elastic_energy) and the smallest deformed to
+// reference volume ratio (min_volume_ratio).
+#include <omp.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "physics/elastic/elastic_body.h"
+#include "physics/elastic/elastic_internal.h"
+#include "physics/elastic/tet_kernel.h"
+
+namespace cellflow::elastic {
+
+namespace {
+
+using detail::kMinForceTetsPerThread;
+using detail::kNoTet;
+using detail::team_size;
+using detail::volumetric_pressures;
+
+// Energy (and, with kForces, the forces scattered into `forces`) of tets
+// [begin, end). The first inverted tet of the range goes to first_inverted.
+//
+// The per-tet stages of tet_kernel.h run in blocks of kBlock tets, one stage
+// at a time: the inverse cube root is a long dependency chain, and in a
+// tet-after-tet loop it stalls everything after it; over a block its
+// iterations are independent and overlap.
+// With tet_pressure (kNodalAverage) the tets carry no kappa term; their
+// stress gets tet_pressure[t] cof(F) instead, and the volumetric energy is
+// summed per vertex by volumetric_pressures.
+template <bool kMooneyRivlin, bool kForces>
+double evaluate_range(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
+                      std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure) {
+  constexpr int kBlock = 16;
+  const std::int32_t* tets = body.tets.data();
+  const double* b_matrix = body.b_matrix.data();
+  const double* volume = body.ref_volume_m3.data();
+  const double* mu1 = body.mu1_pa.data();
+  const double* mu2 = body.mu2_pa.data();
+  const double* kappa = body.kappa_pa.data();
+  kernel::TetStress block[kBlock];
+  double j_m13[kBlock];
+  double block_forces[kBlock][12];
+  double energy = 0.0;
+  for (std::int64_t first = begin; first < end; first += kBlock) {
+    const int size = static_cast<int>(std::min<std::int64_t>(kBlock, end - first));
+    for (int lane = 0; lane < size; ++lane) {
+      const std::int32_t* v = tets + 4 * (first + lane);
+      kernel::TetStress& s = block[lane];
+      s.det_f = kernel::deformation_gradient(
+          b_matrix + 9 * (first + lane), y + 3 * static_cast<std::int64_t>(v[0]),
+          y + 3 * static_cast<std::int64_t>(v[1]), y + 3 * static_cast<std::int64_t>(v[2]),
+          y + 3 * static_cast<std::int64_t>(v[3]), s.f, s.cof);
+    }
+    // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
+    for (int lane = 0; lane < size; ++lane) {
+      const double det_f = block[lane].det_f;
+      j_m13[lane] = kernel::inverse_cube_root(det_f <= 0.0 ? 1.0 : det_f);
+    }
+    for (int lane = 0; lane < size; ++lane) {
+      const std::int64_t t = first + lane;
+      kernel::TetStress& s = block[lane];
+      if (tet_pressure == nullptr) {
+        kernel::stress_from_gradient<kMooneyRivlin>(mu1[t], kMooneyRivlin ? mu2[t] : 0.0, kappa[t],
+                                                    j_m13[lane], s);
+      } else {
+        kernel::stress_from_gradient<kMooneyRivlin>(mu1[t], kMooneyRivlin ? mu2[t] : 0.0, 0.0, j_m13[lane], s,
+                                                    tet_pressure[t]);
+      }
+      if constexpr (kForces) {
+        kernel::forces_from_stress(b_matrix + 9 * t, volume[t], s.stress, block_forces[lane]);
+      }
+    }
+    for (int lane = 0; lane < size; ++lane) {
+      const std::int64_t t = first + lane;
+      if (block[lane].det_f <= 0.0) {
+        first_inverted = std::min(first_inverted, t);
+        continue;
+      }
+      energy += volume[t] * block[lane].energy_density;
+      if constexpr (kForces) {
+        const std::int32_t* v = tets + 4 * t;
+        for (int a = 0; a < 4; ++a) {
+          double* out = forces + 3 * static_cast<std::int64_t>(v[a]);
+          out[0] += block_forces[lane][3 * a];
+          out[1] += block_forces[lane][3 * a + 1];
+          out[2] += block_forces[lane][3 * a + 2];
+        }
+      }
+    }
+  }
+  return energy;
+}
+
+// Deformed volume v = det[y1 - y4, y2 - y4, y3 - y4] / 6 of a tetrahedron.
+double deformed_volume(const double* y, const std::int32_t* v) {
+  const double* y3 = y + 3 * static_cast<std::int64_t>(v[3]);
+  double d[9];
+  for (int k = 0; k < 3; ++k) {
+    const double* yk = y + 3 * static_cast<std::int64_t>(v[k]);
+    for (int i = 0; i < 3; ++i) d[3 * i + k] = yk[i] - y3[i];
+  }
+  return (d[0] * (d[4] * d[8] - d[5] * d[7]) + d[1] * (d[5] * d[6] - d[3] * d[8]) +
+          d[2] * (d[3] * d[7] - d[4] * d[6])) /
+         6.0;
+}
+
+}  // namespace
+
+namespace detail {
+
+// kNodalAverage: the vertex pressures p_a = (kappa V)_a / V_a (Jbar_a - 1),
+// Jbar_a = v_a / V_a with v_a = sum_{t at a} v_t / 4, and per tet the mean of
+// its four vertices' pressures (tet_pressure, one per tet). Returns the
+// volumetric energy sum_a (kappa V)_a / 2 (Jbar_a - 1)^2. Its gradient is
+// sum_a p_a dv_a/dy = sum_t tet_pressure_t V0_t dJ_t/dy, so the tet stress
+// takes tet_pressure_t cof(F) (dJ/dF = cof F).
+double volumetric_pressures(const ElasticBody& body, const double* y, int team,
+                            std::vector<double>& tet_pressure) {
+  const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body.num_vertices);
+  const std::int32_t* tets = body.tets.data();
+  std::vector<double> tet_volume(static_cast<std::size_t>(num_tets));
+  std::vector<double> vertex_pressure(static_cast<std::size_t>(num_vertices), 0.0);
+  tet_pressure.resize(static_cast<std::size_t>(num_tets));
+  double energy = 0.0;
+#pragma omp parallel num_threads(team) reduction(+ : energy)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t t = 0; t < num_tets; ++t) tet_volume[t] = deformed_volume(y, tets + 4 * t);
+#pragma omp for schedule(static)
+    for (std::int64_t a = 0; a < num_vertices; ++a) {
+      const double volume = body.vertex_volume_m3[a];
+      if (volume <= 0.0) continue;  // a vertex of no tet
+      double deformed = 0.0;
+      for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k)
+        deformed += tet_volume[body.vertex_tets[k]];
+      // Jbar_a - 1 = v_a / V_a - 1
+      const double excess = 0.25 * deformed / volume - 1.0;
+      vertex_pressure[a] = body.vertex_bulk_volume_j[a] / volume * excess;
+      energy += 0.5 * body.vertex_bulk_volume_j[a] * excess * excess;
+    }
+#pragma omp for schedule(static)
+    for (std::int64_t t = 0; t < num_tets; ++t) {
+      const std::int32_t* v = tets + 4 * t;
+      tet_pressure[t] = 0.25 * (vertex_pressure[v[0]] + vertex_pressure[v[1]] + vertex_pressure[v[2]] +
+                                vertex_pressure[v[3]]);
+    }
+  }
+  return energy;
+}
+
+}  // namespace detail
+
+namespace {
+
+// Tets are split into one contiguous range per thread. Thread 0 scatters into
+// forces_n, the others into private buffers that are added afterwards: no two
+// threads write the same memory, and every thread streams its tets in order
+// (faster than colouring here, see bench/elastic).
+template <bool kMooneyRivlin, bool kForces>
+ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* forces, int threads) {
+  const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
+  const std::int64_t num_dofs = 3 * static_cast<std::int64_t>(body.num_vertices);
+  const int team = team_size(threads, num_tets, kMinForceTetsPerThread);
+  ElasticEvaluation result;
+  std::int64_t first_inverted = kNoTet;
+  std::vector<double> pressure;
+  double volumetric_energy = 0.0;
+  if (body.volumetric == VolumetricTerm::kNodalAverage) {
+    volumetric_energy = volumetric_pressures(body, y, team, pressure);
+  }
+  const double* tet_pressure = pressure.empty() ? nullptr : pressure.data();
+  if (team == 1) {
+    result.energy_j =
+        evaluate_range<kMooneyRivlin, kForces>(body, y, forces, 0, num_tets, first_inverted, tet_pressure);
+  } else {
+    std::vector<double> buffers;
+    if constexpr (kForces) buffers.assign(static_cast<std::size_t>((team - 1) * num_dofs), 0.0);
+    double energy = 0.0;
+#pragma omp parallel num_threads(team) reduction(+ : energy) reduction(min : first_inverted)
+    {
+      const int rank = omp_get_thread_num();
+      const int size = omp_get_num_threads();
+      double* out = nullptr;
+      if constexpr (kForces) out = rank == 0 ? forces : buffers.data() + (rank - 1) * num_dofs;
+      const std::int64_t begin = num_tets * rank / size;
+      const std::int64_t end = num_tets * (rank + 1) / size;
+      energy = evaluate_range<kMooneyRivlin, kForces>(body, y, out, begin, end, first_inverted, tet_pressure);
+      if constexpr (kForces) {
+        if (size > 1) {
+#pragma omp barrier
+#pragma omp for schedule(static)
+          for (std::int64_t k = 0; k < num_dofs; ++k) {
+            double sum = 0.0;
+            for (int r = 1; r < size; ++r) sum += buffers[(r - 1) * num_dofs + k];
+            forces[k] += sum;
+          }
+        }
+      }
+    }
+    result.energy_j = energy;
+  }
+  result.energy_j += volumetric_energy;
+  result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
+  return result;
+}
+
+}  // namespace
+
+ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
+                                     int threads) {
+  if (body.neo_hookean) return evaluate<false, true>(body, positions_m, forces_n, threads);
+  return evaluate<true, true>(body, positions_m, forces_n, threads);
+}
+
+ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
+                                              double* forces_n, std::int64_t begin_tet,
+                                              std::int64_t end_tet) {
+  std::int64_t first_inverted = kNoTet;
+  ElasticEvaluation result;
+  // kNodalAverage: the pressures need every tet; the energy is then the
+  // range's isochoric part plus the whole volumetric energy.
+  std::vector<double> pressure;
+  if (body.volumetric == VolumetricTerm::kNodalAverage) {
+    result.energy_j = volumetric_pressures(body, positions_m, 1, pressure);
+  }
+  const double* tet_pressure = pressure.empty() ? nullptr : pressure.data();
+  if (body.neo_hookean) {
+    result.energy_j += evaluate_range<false, true>(body, positions_m, forces_n, begin_tet, end_tet,
+                                                   first_inverted, tet_pressure);
+  } else {
+    result.energy_j += evaluate_range<true, true>(body, positions_m, forces_n, begin_tet, end_tet,
+                                                  first_inverted, tet_pressure);
+  }
+  result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
+  return result;
+}
+
+ElasticEvaluation elastic_energy(const ElasticBody& body, const double* positions_m, int threads) {
+  if (body.neo_hookean) return evaluate<false, false>(body, positions_m, nullptr, threads);
+  return evaluate<true, false>(body, positions_m, nullptr, threads);
+}
+
+ElasticEvaluation elastic_energy(const ElasticBody& body, const double* positions_m) {
+  return elastic_energy(body, positions_m, 0);
+}
+
+VolumeRatioMinimum min_volume_ratio(const ElasticBody& body, const double* positions_m) {
+  VolumeRatioMinimum minimum;
+  for (std::size_t t = 0; t < body.num_tets(); ++t) {
+    const double ratio = deformed_volume(positions_m, body.tets.data() + 4 * t) / body.ref_volume_m3[t];
+    if (ratio < minimum.volume_ratio) minimum = {ratio, static_cast<std::int64_t>(t)};
+  }
+  return minimum;
+}
+
+}  // namespace cellflow::elastic

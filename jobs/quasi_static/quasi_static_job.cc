@@ -147,27 +147,29 @@ class QuasiStaticRecorder : public ResultRecorder {
 
 // The scene function of one quasi-static job kind.
 template <class Params>
-using SceneFunction = scenes::QuasiStaticResult (*)(const Params&, const scenes::SceneCallbacks&);
+using SceneFunction = scenes::QuasiStaticResult (*)(const scenes::Checked<Params>&,
+                                                    const scenes::SceneCallbacks&);
 
 // One converted quasi-static job: compression or indentation parameters and
 // the scene that runs them.
 template <class Params>
 class QuasiStaticJob final : public PreparedJob {
  public:
-  QuasiStaticJob(std::string_view name, Params params, SceneFunction<Params> scene)
-      : name_(name), params_(std::move(params)), scene_(scene) {}
+  QuasiStaticJob(std::string_view name, scenes::Checked<Params> checked, SceneFunction<Params> scene)
+      : name_(name), checked_(std::move(checked)), scene_(scene) {}
 
   std::string_view scene() const override { return name_; }
 
   // The process baseline plus the mesh and its solver per vertex.
   std::int64_t memory_bytes() const override {
-    return kBaselineBytes + cell_vertex_bound(params_.cell) * kBytesPerVertex;
+    return kBaselineBytes + cell_vertex_bound(checked_.params().cell) * kBytesPerVertex;
   }
 
   RunOutcome run(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) override {
     RunOutcome outcome;
-    Params params = params_;
-    if (options.threads > 0) params.numerics.threads = options.threads;
+    scenes::Checked<Params> checked = checked_;
+    if (options.threads > 0) checked.set_threads(options.threads);
+    const Params& params = checked.params();
     io::H5mdCreator creator;
     creator.program_version = options.program_version;
     creator.time_unit = "1 (deformation: the load parameter of a quasi-static curve)";
@@ -179,14 +181,15 @@ class QuasiStaticJob final : public PreparedJob {
     QuasiStaticRecorder recorder(writer->get(), params.load_points, options.position_frames, events,
                                  options.debug_delay_per_point_ms);
     if (events.progress) events.progress(0.0, "meshing");
-    scenes::QuasiStaticResult result = scene_(params, recorder.callbacks());
+    scenes::QuasiStaticResult result = scene_(checked, recorder.callbacks());
     const Status written = recorder.finish();
     return outcome_of(result.status, written, recorder.points());
   }
 
   Status run_csv(const CsvSink& sink, int threads) override {
-    Params params = params_;
-    params.numerics.threads = threads;
+    scenes::Checked<Params> checked = checked_;
+    checked.set_threads(threads);
+    const Params& params = checked.params();
     scenes::SceneCallbacks callbacks;
     callbacks.on_point = [&](const scenes::CurvePoint& p) {
       sink.csv << curve_csv_row(p) << '\n' << std::flush;
@@ -201,18 +204,17 @@ class QuasiStaticJob final : public PreparedJob {
       }
     };
     sink.csv << curve_csv_header() << '\n' << std::flush;
-    return scene_(params, callbacks).status;
+    return scene_(checked, callbacks).status;
   }
 
  private:
   std::string_view name_;
-  Params params_;
+  scenes::Checked<Params> checked_;
   SceneFunction<Params> scene_;
 };
 
-}  // namespace
-
-StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec) {
+// Converts without validating: unset fields keep the structs' defaults.
+StatusOr<scenes::CompressionParams> convert(const v1::CompressionSpec& spec) {
   if (!spec.has_cell()) return missing("compression.cell");
   if (!spec.cell().has_material()) return missing("compression.cell.material");
   scenes::CompressionParams params;
@@ -220,11 +222,10 @@ StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec) {
   params.max_deformation = spec.max_deformation();
   if (spec.has_load_points()) params.load_points = spec.load_points();  // else the struct's default
   params.numerics = to_numerics(spec.numerics());
-  if (Status s = scenes::validate(params, "compression."); !s.ok()) return s;
   return params;
 }
 
-StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
+StatusOr<scenes::IndentationParams> convert(const v1::IndentationSpec& spec) {
   if (!spec.has_cell()) return missing("indentation.cell");
   if (!spec.cell().has_material()) return missing("indentation.cell.material");
   scenes::IndentationParams params;
@@ -233,22 +234,41 @@ StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
   params.max_indentation_m = spec.max_indentation_m();
   if (spec.has_load_points()) params.load_points = spec.load_points();  // else the struct's default
   params.numerics = to_numerics(spec.numerics());
-  if (Status s = scenes::validate(params, "indentation."); !s.ok()) return s;
+  return params;
+}
+
+}  // namespace
+
+StatusOr<scenes::CompressionParams> to_params(const v1::CompressionSpec& spec) {
+  StatusOr<scenes::CompressionParams> params = convert(spec);
+  if (!params.ok()) return params;
+  if (Status s = scenes::validate(*params, "compression."); !s.ok()) return s;
+  return params;
+}
+
+StatusOr<scenes::IndentationParams> to_params(const v1::IndentationSpec& spec) {
+  StatusOr<scenes::IndentationParams> params = convert(spec);
+  if (!params.ok()) return params;
+  if (Status s = scenes::validate(*params, "indentation."); !s.ok()) return s;
   return params;
 }
 
 StatusOr<std::unique_ptr<PreparedJob>> prepare_compression(const v1::JobSpec& spec) {
-  StatusOr<scenes::CompressionParams> params = to_params(spec.compression());
+  StatusOr<scenes::CompressionParams> params = convert(spec.compression());
   if (!params.ok()) return params.status();
+  StatusOr<scenes::Checked<scenes::CompressionParams>> checked = scenes::check(*params, "compression.");
+  if (!checked.ok()) return checked.status();
   return std::unique_ptr<PreparedJob>(new QuasiStaticJob<scenes::CompressionParams>(
-      "compression", std::move(*params), &scenes::run_compression));
+      "compression", std::move(*checked), &scenes::run_compression));
 }
 
 StatusOr<std::unique_ptr<PreparedJob>> prepare_indentation(const v1::JobSpec& spec) {
-  StatusOr<scenes::IndentationParams> params = to_params(spec.indentation());
+  StatusOr<scenes::IndentationParams> params = convert(spec.indentation());
   if (!params.ok()) return params.status();
+  StatusOr<scenes::Checked<scenes::IndentationParams>> checked = scenes::check(*params, "indentation.");
+  if (!checked.ok()) return checked.status();
   return std::unique_ptr<PreparedJob>(new QuasiStaticJob<scenes::IndentationParams>(
-      "indentation", std::move(*params), &scenes::run_indentation));
+      "indentation", std::move(*checked), &scenes::run_indentation));
 }
 
 v1::ForceSample force_sample_from(const scenes::CurvePoint& point) {

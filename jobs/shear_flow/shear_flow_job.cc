@@ -148,8 +148,7 @@ class FlowRecorder : public ResultRecorder {
 // from them (both computed once, at prepare).
 class ShearFlowJob final : public PreparedJob {
  public:
-  ShearFlowJob(scenes::ShearFlowParams params, scenes::ShearFlowSetup setup)
-      : params_(std::move(params)), setup_(std::move(setup)) {}
+  explicit ShearFlowJob(scenes::PlannedShearFlow planned) : planned_(std::move(planned)) {}
 
   std::string_view scene() const override { return "shear_flow"; }
 
@@ -161,17 +160,18 @@ class ShearFlowJob final : public PreparedJob {
   // snapshots, 3 values, when numerics.fluid_snapshots is set), and the cell
   // mesh at the quasi-static rate per vertex.
   std::int64_t memory_bytes() const override {
-    const double nodes = static_cast<double>(setup_.nx) * setup_.ny * setup_.nz;
-    const double transient_values = params_.numerics.fluid_snapshots ? 3.0 : 2.0;
-    const double bytes = static_cast<double>(setup_.lattice_bytes) + nodes * transient_values * 8.0;
+    const scenes::ShearFlowSetup& setup = planned_.setup();
+    const double nodes = static_cast<double>(setup.nx) * setup.ny * setup.nz;
+    const double transient_values = planned_.params().numerics.fluid_snapshots ? 3.0 : 2.0;
+    const double bytes = static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18)) +
-           cell_vertex_bound(params_.cell) * kBytesPerVertex;
+           cell_vertex_bound(planned_.params().cell) * kBytesPerVertex;
   }
 
   RunOutcome run(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) override {
     RunOutcome outcome;
-    scenes::ShearFlowParams params = params_;
-    if (options.threads > 0) params.numerics.threads = options.threads;
+    scenes::PlannedShearFlow planned = planned_;
+    if (options.threads > 0) planned.set_threads(options.threads);
     io::H5mdCreator creator;
     creator.program_version = options.program_version;
     auto writer = open_result(spec, options, creator);
@@ -179,10 +179,10 @@ class ShearFlowJob final : public PreparedJob {
       outcome.status = writer.status();
       return outcome;
     }
-    FlowRecorder recorder(writer->get(), setup_, params.numerics.max_strain, events);
+    FlowRecorder recorder(writer->get(), planned.setup(), planned.params().numerics.max_strain, events);
     recorder.write_setup();
     if (events.progress) events.progress(0.0, "meshing");
-    const scenes::ShearFlowResult result = scenes::run_shear_flow(params, recorder.callbacks());
+    const scenes::ShearFlowResult result = scenes::run_shear_flow(planned, recorder.callbacks());
     const Status written = recorder.finish(result);
     outcome = outcome_of(result.status, written, recorder.samples());
     if (outcome.status.ok() && events.progress)
@@ -191,8 +191,9 @@ class ShearFlowJob final : public PreparedJob {
   }
 
   Status run_csv(const CsvSink& sink, int threads) override {
-    scenes::ShearFlowParams params = params_;
-    params.numerics.threads = threads;
+    scenes::PlannedShearFlow planned = planned_;
+    planned.set_threads(threads);
+    const scenes::ShearFlowParams& params = planned.params();
     sink.csv << deformation_csv_header() << '\n' << std::flush;
     scenes::ShearFlowCallbacks callbacks;
     callbacks.on_sample = [&](const scenes::ShearFlowSample& s) {
@@ -205,7 +206,7 @@ class ShearFlowJob final : public PreparedJob {
         *sink.progress << line << std::flush;
       }
     };
-    const scenes::ShearFlowResult result = scenes::run_shear_flow(params, callbacks);
+    const scenes::ShearFlowResult result = scenes::run_shear_flow(planned, callbacks);
     if (sink.progress && !result.samples.empty()) {
       char line[300];
       std::snprintf(
@@ -223,8 +224,7 @@ class ShearFlowJob final : public PreparedJob {
   }
 
  private:
-  scenes::ShearFlowParams params_;
-  scenes::ShearFlowSetup setup_;
+  scenes::PlannedShearFlow planned_;
 };
 
 }  // namespace
@@ -234,9 +234,9 @@ StatusOr<std::unique_ptr<PreparedJob>> prepare_shear_flow(const v1::JobSpec& spe
   if (!params.ok()) return params.status();
   // Fields, ranges, Mach number and memory; the stability check needs the
   // mesh and runs at the start of run_shear_flow.
-  StatusOr<scenes::ShearFlowSetup> setup = scenes::plan_shear_flow(*params, "shear_flow.");
-  if (!setup.ok()) return setup.status();
-  return std::unique_ptr<PreparedJob>(new ShearFlowJob(std::move(*params), std::move(*setup)));
+  StatusOr<scenes::PlannedShearFlow> planned = scenes::plan_shear_flow_run(*params, "shear_flow.");
+  if (!planned.ok()) return planned.status();
+  return std::unique_ptr<PreparedJob>(new ShearFlowJob(std::move(*planned)));
 }
 
 v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& s) {

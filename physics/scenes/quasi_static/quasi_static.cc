@@ -249,16 +249,32 @@ Status validate(const IndentationParams& params, std::string_view field_prefix) 
   return invalid_argument(std::move(message));
 }
 
-// The scene's parameters checked (every violation named under prefix), then
-// the cell, body and contact set up.
-template <class SceneParams>
-StatusOr<Setup> validate_and_prepare(const SceneParams& params, std::string_view prefix) {
-  if (Status s = validate(params, prefix); !s.ok()) return s;
-  return prepare(params.cell, params.numerics, prefix);
+StatusOr<Checked<CompressionParams>> check(const CompressionParams& params, std::string_view field_prefix) {
+  if (Status s = validate(params, field_prefix); !s.ok()) return s;
+  return Checked<CompressionParams>(params);
+}
+
+StatusOr<Checked<IndentationParams>> check(const IndentationParams& params, std::string_view field_prefix) {
+  if (Status s = validate(params, field_prefix); !s.ok()) return s;
+  return Checked<IndentationParams>(params);
 }
 
 QuasiStaticResult run_compression(const CompressionParams& params, const SceneCallbacks& callbacks) {
-  StatusOr<Setup> prepared = validate_and_prepare(params, "compression.");
+  StatusOr<Checked<CompressionParams>> checked = check(params);
+  if (!checked.ok()) return QuasiStaticResult{.status = checked.status(), .curve = {}};
+  return run_compression(*checked, callbacks);
+}
+
+QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCallbacks& callbacks) {
+  StatusOr<Checked<IndentationParams>> checked = check(params);
+  if (!checked.ok()) return QuasiStaticResult{.status = checked.status(), .curve = {}};
+  return run_indentation(*checked, callbacks);
+}
+
+QuasiStaticResult run_compression(const Checked<CompressionParams>& checked,
+                                  const SceneCallbacks& callbacks) {
+  const CompressionParams& params = checked.params();
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "compression.");
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   // Plates start at the zero-force distance (the penalty range) from the
@@ -284,8 +300,10 @@ QuasiStaticResult run_compression(const CompressionParams& params, const SceneCa
                          measure);
 }
 
-QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCallbacks& callbacks) {
-  StatusOr<Setup> prepared = validate_and_prepare(params, "indentation.");
+QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
+                                  const SceneCallbacks& callbacks) {
+  const IndentationParams& params = checked.params();
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "indentation.");
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   const double range = setup.penalty.range_m;

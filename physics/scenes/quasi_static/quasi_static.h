@@ -70,6 +70,32 @@ struct IndentationParams {
 Status validate(const CompressionParams& params, std::string_view field_prefix = "compression.");
 Status validate(const IndentationParams& params, std::string_view field_prefix = "indentation.");
 
+// Parameters that validate() accepted: what a job holds after its one
+// conversion, so that running it validates nothing again. Only check() makes one.
+template <class Params>
+class Checked;
+StatusOr<Checked<CompressionParams>> check(const CompressionParams& params,
+                                           std::string_view field_prefix = "compression.");
+StatusOr<Checked<IndentationParams>> check(const IndentationParams& params,
+                                           std::string_view field_prefix = "indentation.");
+
+template <class Params>
+class Checked {
+ public:
+  const Params& params() const { return params_; }
+  // OpenMP threads of the solve (0: the OpenMP default), clamped to
+  // [0, 1024] as validate() allows: the one field a caller may set after checking.
+  void set_threads(int threads) {
+    params_.numerics.threads = threads < 0 ? 0 : (threads > 1024 ? 1024 : threads);
+  }
+
+ private:
+  friend StatusOr<Checked<CompressionParams>> check(const CompressionParams&, std::string_view);
+  friend StatusOr<Checked<IndentationParams>> check(const IndentationParams&, std::string_view);
+  explicit Checked(Params params) : params_(std::move(params)) {}
+  Params params_;
+};
+
 // One point of a force-deformation curve.
 struct CurvePoint {
   int index = 0;                // 0 .. load_points-1
@@ -105,6 +131,11 @@ struct QuasiStaticResult {
 
 QuasiStaticResult run_compression(const CompressionParams& params, const SceneCallbacks& callbacks = {});
 QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCallbacks& callbacks = {});
+// The same for checked parameters: no validation again.
+QuasiStaticResult run_compression(const Checked<CompressionParams>& checked,
+                                  const SceneCallbacks& callbacks = {});
+QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
+                                  const SceneCallbacks& callbacks = {});
 
 // Hertz forces (shared/validation/README.md).
 // Sphere between two plates, total compression delta: F = (4/3) E* R^2 eps^1.5, eps = delta/(2R).

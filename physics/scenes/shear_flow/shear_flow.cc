@@ -266,19 +266,26 @@ std::string_view stop_name(ShearFlowStop stop) {
 }
 
 ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCallbacks& callbacks) {
-  const auto wall_start = std::chrono::steady_clock::now();
-  const std::string prefix = "shear_flow.";
-  ShearFlowResult result;
-  result.stop = ShearFlowStop::kFailed;
-  StatusOr<Plan> planned = make_plan(params, prefix);
+  StatusOr<PlannedShearFlow> planned = plan_shear_flow_run(params, "shear_flow.");
   if (!planned.ok()) {
+    ShearFlowResult result;
+    result.stop = ShearFlowStop::kFailed;
     result.status = planned.status();
     return result;
   }
+  return run_shear_flow(*planned, callbacks);
+}
+
+ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowCallbacks& callbacks) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const std::string prefix = "shear_flow.";
+  const ShearFlowParams& params = planned.params();
+  ShearFlowResult result;
+  result.stop = ShearFlowStop::kFailed;
   Run run;
   run.params = &params;
   run.callbacks = &callbacks;
-  run.plan = *planned;
+  run.plan = Plan{planned.setup(), planned.units()};
   result.setup = run.plan.setup;
   const ShearFlowNumerics& n = params.numerics;
   const units::Units& u = run.plan.units;

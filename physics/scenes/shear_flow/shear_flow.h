@@ -46,6 +46,7 @@
 #include "physics/elastic/elastic_body.h"
 #include "physics/ibm/ibm.h"
 #include "physics/mesh/tet_mesh.h"
+#include "physics/units/units.h"
 
 namespace cellflow::scenes {
 
@@ -159,6 +160,32 @@ struct ShearFlowSetup {
 StatusOr<ShearFlowSetup> plan_shear_flow(const ShearFlowParams& params,
                                          std::string_view field_prefix = "shear_flow.");
 
+// A run whose parameters plan_shear_flow_run validated and planned: what a
+// job holds after its one conversion, so that running it validates nothing
+// again. Only plan_shear_flow_run makes one.
+class PlannedShearFlow {
+ public:
+  const ShearFlowParams& params() const { return params_; }
+  const ShearFlowSetup& setup() const { return setup_; }
+  const units::Units& units() const { return units_; }
+  // OpenMP threads of the run (0: the OpenMP default), clamped to [0, 1024]
+  // as validate() allows: the one field a caller may set after planning.
+  void set_threads(int threads);
+
+ private:
+  friend StatusOr<PlannedShearFlow> plan_shear_flow_run(const ShearFlowParams& params,
+                                                        std::string_view field_prefix);
+  PlannedShearFlow(ShearFlowParams params, ShearFlowSetup setup, units::Units units)
+      : params_(std::move(params)), setup_(std::move(setup)), units_(units) {}
+  ShearFlowParams params_;
+  ShearFlowSetup setup_;
+  units::Units units_;
+};
+
+// plan_shear_flow, keeping the parameters and the unit conversion for the run.
+StatusOr<PlannedShearFlow> plan_shear_flow_run(const ShearFlowParams& params,
+                                               std::string_view field_prefix = "shear_flow.");
+
 struct ShearFlowSample {
   int index = 0;
   std::int64_t time_step = 0;
@@ -248,6 +275,8 @@ struct ShearFlowResult {
 // speed, the cell reaching a wall) ends it with kNumericalFailure naming the
 // time step and the cause; the samples so far are kept.
 ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCallbacks& callbacks = {});
+// The same for a planned run: no validation or planning again.
+ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowCallbacks& callbacks = {});
 
 // Small-Ca limit of Roscoe's theory for an elastic sphere, exact for any
 // hyperelastic law (shared/validation/README.md): D = (5/4) Ca and, for

@@ -1,5 +1,6 @@
 // Shear-flow scene: validation of the params and the plan (units, lattice,
 // Mach and memory checks) derived from them before anything is allocated.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -226,6 +227,16 @@ StatusOr<ShearFlowSetup> plan_shear_flow(const ShearFlowParams& params, std::str
   StatusOr<Plan> plan = make_plan(params, field_prefix);
   if (!plan.ok()) return plan.status();
   return plan->setup;
+}
+
+StatusOr<PlannedShearFlow> plan_shear_flow_run(const ShearFlowParams& params, std::string_view field_prefix) {
+  StatusOr<Plan> plan = make_plan(params, field_prefix);
+  if (!plan.ok()) return plan.status();
+  return PlannedShearFlow(params, std::move(plan->setup), plan->units);
+}
+
+void PlannedShearFlow::set_threads(int threads) {
+  params_.numerics.threads = std::clamp(threads, 0, 1024);
 }
 
 }  // namespace cellflow::scenes

@@ -1,6 +1,7 @@
 #include "physics/cell/cell_params.h"
 
-#include <charconv>
+#include <sys/stat.h>
+
 #include <cmath>
 #include <fstream>
 #include <string>
@@ -11,17 +12,6 @@ namespace cellflow::cell {
 
 namespace {
 
-std::string format_number(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
-}
-
-void add_violation(std::string& message, std::string_view text) {
-  if (!message.empty()) message += "; ";
-  message += text;
-}
-
 // A read mesh must describe a cell of about the stated radius: the file is
 // read in metres, and a unit-sphere file with R = 8.6e-6 would otherwise give
 // a 1 m cell without a word.
@@ -29,35 +19,45 @@ constexpr double kMeshRadiusMismatch = 1.25;
 
 }  // namespace
 
-Status validate(const CellParams& cell, std::string_view field_prefix) {
-  const std::string prefix(field_prefix);
-  std::string message;
-  if (!(cell.radius_m > 0.0 && std::isfinite(cell.radius_m))) {
-    add_violation(message, prefix + "radius_m = " + format_number(cell.radius_m) + " must be > 0 and finite");
+Violations check(const CellParams& cell) {
+  Violations violations;
+  // The sphere mesher's range (0.1 um to 1 cm): a cell outside it cannot be
+  // meshed, and no cell is that small or large. Written so that NaN fails.
+  const double r = cell.radius_m;
+  if (!(r >= mesh::kMinSphereRadiusM && r <= mesh::kMaxSphereRadiusM)) {
+    violations.add_value("radius_m", r,
+                         "lie in [" + number_text(mesh::kMinSphereRadiusM) + ", " +
+                             number_text(mesh::kMaxSphereRadiusM) + "] (0.1 um to 1 cm)");
   }
-  if (Status s = elastic::validate(cell.material, prefix + "material."); !s.ok()) {
-    add_violation(message, s.message());
-  }
+  violations.add_all(elastic::check(cell.material), "material.");
   if (cell.nucleus) {
     const double rn = cell.nucleus->radius_m;
     if (!(rn > 0.0 && rn < cell.radius_m)) {
-      add_violation(message, prefix + "nucleus.radius_m = " + format_number(rn) +
-                                 " must lie in (0, radius_m) = (0, " + format_number(cell.radius_m) + ")");
+      violations.add_value("nucleus.radius_m", rn,
+                           "lie in (0, radius_m) = (0, " + number_text(cell.radius_m) + ")");
     }
-    if (Status s = elastic::validate(cell.nucleus->material, prefix + "nucleus.material."); !s.ok()) {
-      add_violation(message, s.message());
-    }
+    violations.add_all(elastic::check(cell.nucleus->material), "nucleus.material.");
   }
   if (cell.mesh_file.empty()) {
-    if (cell.target_vertex_count < 200 || cell.target_vertex_count > 20000) {
-      add_violation(message, prefix + "target_vertex_count = " + std::to_string(cell.target_vertex_count) +
-                                 " must lie in [200, 20000]");
+    if (cell.target_vertex_count < mesh::kMinSphereVertexCount ||
+        cell.target_vertex_count > mesh::kMaxSphereVertexCount) {
+      violations.add("target_vertex_count", "= " + std::to_string(cell.target_vertex_count) +
+                                                " must lie in [" +
+                                                std::to_string(mesh::kMinSphereVertexCount) + ", " +
+                                                std::to_string(mesh::kMaxSphereVertexCount) + "]");
     }
-  } else if (!std::ifstream(cell.mesh_file).good()) {
-    add_violation(message, prefix + "mesh_file = '" + cell.mesh_file + "' cannot be opened for reading");
+  } else {
+    // stat, never open: opening a FIFO blocks, and a device never ends.
+    struct stat info {};
+    if (::stat(cell.mesh_file.c_str(), &info) != 0 || !S_ISREG(info.st_mode)) {
+      violations.add("mesh_file", "= '" + cell.mesh_file + "' is not a readable regular file");
+    }
   }
-  if (message.empty()) return Status::ok_status();
-  return invalid_argument(std::move(message));
+  return violations;
+}
+
+Status validate(const CellParams& cell, std::string_view field_prefix) {
+  return check(cell).status(field_prefix);
 }
 
 StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix) {
@@ -86,10 +86,10 @@ StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view
   if (!(equivalent_radius < kMeshRadiusMismatch * cell.radius_m &&
         equivalent_radius > cell.radius_m / kMeshRadiusMismatch)) {
     return invalid_argument(field + ": the mesh's volume-equivalent radius " +
-                            format_number(equivalent_radius) +
-                            " m does not match cell.radius_m = " + format_number(cell.radius_m) + " m (" +
+                            number_text(equivalent_radius) +
+                            " m does not match cell.radius_m = " + number_text(cell.radius_m) + " m (" +
                             std::string(field_prefix) + "radius_m) within a factor " +
-                            format_number(kMeshRadiusMismatch) + " (file coordinates are read in metres)");
+                            number_text(kMeshRadiusMismatch) + " (file coordinates are read in metres)");
   }
   bool has_nucleus = false;
   for (const mesh::Region r : read->tet_region) has_nucleus = has_nucleus || r == mesh::Region::kNucleus;

@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "physics/core/status.h"
+#include "physics/core/violations.h"
 #include "physics/elastic/material.h"
 #include "physics/mesh/tet_mesh.h"
 
@@ -25,8 +26,11 @@ struct CellParams {
   std::string mesh_file;           // optional Gmsh .msh v4 ASCII; replaces the generated sphere
 };
 
-// Checks every field (all violations in one message, each naming
-// field_prefix + field and its allowed range); a mesh_file must be readable.
+// Every field out of range, named relative to the cell ("radius_m",
+// "material.poisson_ratio") with its allowed range; a mesh_file must be a
+// regular file (checked with stat, never opened here).
+Violations check(const CellParams& cell);
+// check(cell) as a Status, every field under field_prefix.
 Status validate(const CellParams& cell, std::string_view field_prefix);
 
 // Builds (or reads) the cell mesh for `cell`: a TetGen sphere of

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cmath>
 #include <string>
 
@@ -18,22 +17,15 @@ namespace cellflow::scenes {
 
 namespace {
 
-std::string format_number(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
-}
-
-void add_violation(std::string& message, std::string_view text) {
-  if (!message.empty()) message += "; ";
-  message += text;
-}
-
 // Allowed ranges of the numerics (QuasiStaticNumerics in spec.proto).
 constexpr double kMinResidualTolerance = 1e-12, kMaxResidualTolerance = 1e-2;
 constexpr int kMaxNewtonIterations = 1000;
 constexpr int kMaxStepSplits = 30;
 constexpr int kMaxLoadPoints = 100000;
+constexpr int kMaxThreads = 1024;
+// Largest compression / diameter and probe travel / radius a scene runs.
+constexpr double kMaxDeformation = 0.9;
+constexpr double kMaxIndentationRadii = 1.8;
 // A contact range beyond a tenth of the radius would blur the first contact.
 constexpr double kMaxContactRangeRadii = 0.1;
 // Smallest element volume ratio J a load point may reach. Converged curves to
@@ -48,42 +40,46 @@ constexpr double kMinVolumeRatio = 0.2;
 // vertices (stress matrix: 2.5 um probe on 1000 vertices, -4 % at 0.25).
 constexpr double kMaxForceDrop = 1e-3;
 
-void validate_numerics(const QuasiStaticOptions& n, double radius_m, const std::string& prefix,
-                       std::string& message) {
+// "lie in [lo, hi]" for an integer range.
+std::string int_range(int lo, int hi) {
+  return "lie in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+}
+
+Violations check_numerics(const QuasiStaticOptions& n, double radius_m) {
+  Violations v;
   if (!(n.residual_tolerance >= kMinResidualTolerance && n.residual_tolerance <= kMaxResidualTolerance)) {
-    add_violation(message, prefix + "residual_tolerance = " + format_number(n.residual_tolerance) +
-                               " must lie in [1e-12, 0.01]");
+    v.add_value(
+        "residual_tolerance", n.residual_tolerance,
+        "lie in [" + number_text(kMinResidualTolerance) + ", " + number_text(kMaxResidualTolerance) + "]");
   }
   if (n.max_newton_iterations < 1 || n.max_newton_iterations > kMaxNewtonIterations) {
-    add_violation(message, prefix + "max_newton_iterations = " + std::to_string(n.max_newton_iterations) +
-                               " must lie in [1, 1000]");
+    v.add("max_newton_iterations",
+          "= " + std::to_string(n.max_newton_iterations) + " must " + int_range(1, kMaxNewtonIterations));
   }
   if (n.max_step_splits < 0 || n.max_step_splits > kMaxStepSplits) {
-    add_violation(message,
-                  prefix + "max_step_splits = " + std::to_string(n.max_step_splits) + " must lie in [0, 30]");
+    v.add("max_step_splits",
+          "= " + std::to_string(n.max_step_splits) + " must " + int_range(0, kMaxStepSplits));
   }
   if (n.contact_stiffness_n_per_m &&
       !(*n.contact_stiffness_n_per_m > 0.0 && std::isfinite(*n.contact_stiffness_n_per_m))) {
-    add_violation(message, prefix +
-                               "contact_stiffness_n_per_m = " + format_number(*n.contact_stiffness_n_per_m) +
-                               " must be > 0 and finite (or unset for the derived default)");
+    v.add_value("contact_stiffness_n_per_m", *n.contact_stiffness_n_per_m,
+                "be > 0 and finite (or unset for the derived default)");
   }
   if (n.contact_range_m &&
       !(*n.contact_range_m > 0.0 && *n.contact_range_m <= kMaxContactRangeRadii * radius_m)) {
-    add_violation(message, prefix + "contact_range_m = " + format_number(*n.contact_range_m) +
-                               " must lie in (0, 0.1 radius_m] = (0, " +
-                               format_number(kMaxContactRangeRadii * radius_m) +
-                               "] (or unset for the default)");
+    v.add_value("contact_range_m", *n.contact_range_m,
+                "lie in (0, " + number_text(kMaxContactRangeRadii) + " radius_m] = (0, " +
+                    number_text(kMaxContactRangeRadii * radius_m) + "] (or unset for the default)");
   }
-  if (n.threads < 0 || n.threads > 1024) {
-    add_violation(message, prefix + "threads = " + std::to_string(n.threads) + " must lie in [0, 1024]");
+  if (n.threads < 0 || n.threads > kMaxThreads) {
+    v.add("threads", "= " + std::to_string(n.threads) + " must " + int_range(0, kMaxThreads));
   }
+  return v;
 }
 
-void validate_load_points(int load_points, const std::string& prefix, std::string& message) {
+void check_load_points(int load_points, Violations& v) {
   if (load_points < 1 || load_points > kMaxLoadPoints) {
-    add_violation(message,
-                  prefix + "load_points = " + std::to_string(load_points) + " must lie in [1, 100000]");
+    v.add("load_points", "= " + std::to_string(load_points) + " must " + int_range(1, kMaxLoadPoints));
   }
 }
 
@@ -157,9 +153,9 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
     const double travel = max_travel_m * (i + 1) / load_points;
     const solver::LoadStepReport step = path.advance_to(travel, numerics.max_step_splits);
     if (!step.converged) {
-      result.status = numerical_failure("load step " + std::to_string(i) + " of " +
-                                        std::to_string(load_points) + " (target deformation " +
-                                        format_number(travel / diameter) + "): " + step.message);
+      result.status =
+          numerical_failure("load step " + std::to_string(i) + " of " + std::to_string(load_points) +
+                            " (target deformation " + number_text(travel / diameter) + "): " + step.message);
       return result;
     }
     // The volumetric energy kappa/2 (J - 1)^2 of eq. (5) stays below kappa/2
@@ -171,9 +167,9 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
     if (crushed.volume_ratio < kMinVolumeRatio) {
       result.status = numerical_failure(
           "load step " + std::to_string(i) + " of " + std::to_string(load_points) + " (target deformation " +
-          format_number(travel / diameter) + "): tetrahedron " + std::to_string(crushed.tet) +
-          " is compressed to J = " + format_number(crushed.volume_ratio) + " of its volume (below " +
-          format_number(kMinVolumeRatio) +
+          number_text(travel / diameter) + "): tetrahedron " + std::to_string(crushed.tet) +
+          " is compressed to J = " + number_text(crushed.volume_ratio) + " of its volume (below " +
+          number_text(kMinVolumeRatio) +
           "): the volumetric energy of eq. 5 no longer holds the volume; the curve ends before it");
       return result;
     }
@@ -187,10 +183,10 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
       const double spacing = mesh::mesh_quality(setup.mesh).mean_edge_length_m;
       result.status = numerical_failure(
           "load step " + std::to_string(i) + " of " + std::to_string(load_points) + " (target deformation " +
-          format_number(travel / diameter) + "): the force fell from " +
-          format_number(result.curve.back().force_n) + " N to " + format_number(point.force_n) +
+          number_text(travel / diameter) + "): the force fell from " +
+          number_text(result.curve.back().force_n) + " N to " + number_text(point.force_n) +
           " N with more travel: the obstacle slipped between surface vertices (mean mesh edge " +
-          format_number(spacing) +
+          number_text(spacing) +
           " m); the curve ends before it. Raise cell.target_vertex_count, or use a probe much wider than "
           "the mesh edge");
       return result;
@@ -215,38 +211,41 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
 
 }  // namespace
 
-Status validate(const CompressionParams& params, std::string_view field_prefix) {
-  const std::string prefix(field_prefix);
-  std::string message;
-  if (Status s = validate(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
-  if (!(params.max_deformation > 0.0 && params.max_deformation <= 0.9)) {
-    add_violation(message, prefix + "max_deformation = " + format_number(params.max_deformation) +
-                               " must lie in (0, 0.9]");
+Violations violations(const CompressionParams& params) {
+  Violations v;
+  v.add_all(cell::check(params.cell), "cell.");
+  if (!(params.max_deformation > 0.0 && params.max_deformation <= kMaxDeformation)) {
+    v.add_value("max_deformation", params.max_deformation,
+                "lie in (0, " + number_text(kMaxDeformation) + "]");
   }
-  validate_load_points(params.load_points, prefix, message);
-  validate_numerics(params.numerics, params.cell.radius_m, prefix + "numerics.", message);
-  if (message.empty()) return Status::ok_status();
-  return invalid_argument(std::move(message));
+  check_load_points(params.load_points, v);
+  v.add_all(check_numerics(params.numerics, params.cell.radius_m), "numerics.");
+  return v;
+}
+
+Violations violations(const IndentationParams& params) {
+  Violations v;
+  v.add_all(cell::check(params.cell), "cell.");
+  if (!(params.probe_radius_m > 0.0 && std::isfinite(params.probe_radius_m))) {
+    v.add_value("probe_radius_m", params.probe_radius_m, "be > 0 and finite");
+  }
+  const double max_travel = kMaxIndentationRadii * params.cell.radius_m;
+  if (!(params.max_indentation_m > 0.0 && params.max_indentation_m < max_travel)) {
+    v.add_value("max_indentation_m", params.max_indentation_m,
+                "lie in (0, " + number_text(kMaxIndentationRadii) + " cell.radius_m) = (0, " +
+                    number_text(max_travel) + ")");
+  }
+  check_load_points(params.load_points, v);
+  v.add_all(check_numerics(params.numerics, params.cell.radius_m), "numerics.");
+  return v;
+}
+
+Status validate(const CompressionParams& params, std::string_view field_prefix) {
+  return violations(params).status(field_prefix);
 }
 
 Status validate(const IndentationParams& params, std::string_view field_prefix) {
-  const std::string prefix(field_prefix);
-  std::string message;
-  if (Status s = validate(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
-  if (!(params.probe_radius_m > 0.0 && std::isfinite(params.probe_radius_m))) {
-    add_violation(message, prefix + "probe_radius_m = " + format_number(params.probe_radius_m) +
-                               " must be > 0 and finite");
-  }
-  const double max_travel = 1.8 * params.cell.radius_m;
-  if (!(params.max_indentation_m > 0.0 && params.max_indentation_m < max_travel)) {
-    add_violation(message, prefix + "max_indentation_m = " + format_number(params.max_indentation_m) +
-                               " must lie in (0, 1.8 cell.radius_m) = (0, " + format_number(max_travel) +
-                               ")");
-  }
-  validate_load_points(params.load_points, prefix, message);
-  validate_numerics(params.numerics, params.cell.radius_m, prefix + "numerics.", message);
-  if (message.empty()) return Status::ok_status();
-  return invalid_argument(std::move(message));
+  return violations(params).status(field_prefix);
 }
 
 StatusOr<Checked<CompressionParams>> check(const CompressionParams& params, std::string_view field_prefix) {

@@ -67,6 +67,11 @@ struct IndentationParams {
   QuasiStaticOptions numerics;
 };
 
+// Every field out of range, named relative to the params ("max_deformation",
+// "cell.radius_m", "numerics.threads") with its allowed range.
+Violations violations(const CompressionParams& params);
+Violations violations(const IndentationParams& params);
+// violations(params) as a Status, every field under field_prefix.
 Status validate(const CompressionParams& params, std::string_view field_prefix = "compression.");
 Status validate(const IndentationParams& params, std::string_view field_prefix = "indentation.");
 

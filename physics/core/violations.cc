@@ -4,6 +4,24 @@
 #include <cstdio>
 
 namespace cellflow {
+namespace {
+
+// `text` with every "{}" replaced by "{}" + `path` (keep: an outer struct's
+// path still goes in front) or by `path` (final).
+std::string with_path(std::string_view text, std::string_view path, bool keep_placeholder) {
+  std::string out;
+  std::size_t start = 0;
+  for (std::size_t at = text.find("{}"); at != std::string_view::npos; at = text.find("{}", start)) {
+    out += text.substr(start, at - start);
+    if (keep_placeholder) out += "{}";
+    out += path;
+    start = at + 2;
+  }
+  out += text.substr(start);
+  return out;
+}
+
+}  // namespace
 
 std::string number_text(double value, int significant_digits) {
   char buffer[48];
@@ -25,8 +43,12 @@ void Violations::add_value(std::string_view field, double value, std::string_vie
 
 void Violations::add_all(const Violations& nested, std::string_view prefix) {
   for (const Violation& v : nested.list_) {
-    // A whole message (no field) stays as it is: it names its own fields.
-    list_.push_back({v.field.empty() ? v.field : std::string(prefix) + v.field, v.problem});
+    // A whole message (no field) names its fields through its placeholders.
+    if (v.field.empty()) {
+      list_.push_back({"", with_path(v.problem, prefix, true)});
+    } else {
+      list_.push_back({std::string(prefix) + v.field, v.problem});
+    }
   }
 }
 
@@ -40,7 +62,7 @@ Status Violations::status(std::string_view prefix) const {
   for (const Violation& v : list_) {
     if (!message.empty()) message += "; ";
     if (v.field.empty()) {
-      message += v.problem;
+      message += with_path(v.problem, prefix, false);
     } else {
       message += prefix;
       message += v.field;

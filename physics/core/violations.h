@@ -34,7 +34,9 @@ class Violations {
   // The violations of a nested struct, their fields under `prefix` ("cell.").
   void add_all(const Violations& nested, std::string_view prefix);
   // A violation that comes as a whole message already (from a function that
-  // reports a Status), kept as it is.
+  // reports a Status), kept as it is. Each "{}" in it stands for the path of
+  // the struct checked and is replaced by it (a message that names two
+  // fields: "set only one of {}shear_rate_per_s and {}capillary_number").
   void add_message(std::string_view message);
 
   bool empty() const { return list_.empty(); }

@@ -44,5 +44,14 @@ TEST(Violations, FieldsAreRelativeAndTheCallerAddsThePath) {
   EXPECT_TRUE(Violations().status("x.").ok());
 }
 
+TEST(Violations, WholeMessagesNameTheirFieldsThroughPlaceholders) {
+  Violations numerics;
+  numerics.add_message("set only one of {}a and {}b");
+  Violations scene;
+  scene.add_all(numerics, "numerics.");
+  EXPECT_EQ(scene.status("shear_flow.").message(),
+            "set only one of shear_flow.numerics.a and shear_flow.numerics.b");
+}
+
 }  // namespace
 }  // namespace cellflow

@@ -79,8 +79,8 @@ void emit_fluid(Run& run, const lb::Fluid& fluid, int index, double time_s) {
 
 std::string where(const Run& run, std::int64_t step) {
   return "time step " + std::to_string(step) +
-         " (t = " + num(run.plan.units.time_to_si(static_cast<double>(step))) + " s, strain " +
-         num(static_cast<double>(step) * run.plan.setup.shear_rate_lattice) + ")";
+         " (t = " + number_text(run.plan.units.time_to_si(static_cast<double>(step)), 6) + " s, strain " +
+         number_text(static_cast<double>(step) * run.plan.setup.shear_rate_lattice, 6) + ")";
 }
 
 template <class T>
@@ -158,8 +158,9 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
         return;
       }
       if (!(eval.energy_j <= run.energy_limit_j)) {
-        fail(step, "elastic energy " + num(eval.energy_j) + " J exceeds " + num(kEnergyBlowUp) +
-                       " mu V0 = " + num(run.energy_limit_j) + " J (blow-up or NaN)");
+        fail(step, "elastic energy " + number_text(eval.energy_j, 6) + " J exceeds " +
+                       number_text(kEnergyBlowUp, 6) + " mu V0 = " + number_text(run.energy_limit_j, 6) +
+                       " J (blow-up or NaN)");
         return;
       }
     }
@@ -188,23 +189,25 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
         return;
       }
       if (moved.max_speed_lattice > kRunawaySpeedLattice) {
-        fail(step, "vertex speed " + num(moved.max_speed_lattice) + " (lattice units) exceeds " +
-                       num(kRunawaySpeedLattice) + " (wall speed " + num(setup.mach_number / std::sqrt(3.0)) +
+        fail(step, "vertex speed " + number_text(moved.max_speed_lattice, 6) + " (lattice units) exceeds " +
+                       number_text(kRunawaySpeedLattice, 6) + " (wall speed " +
+                       number_text(setup.mach_number / std::sqrt(3.0), 6) +
                        "): the explicit coupling is unstable; lower shear_flow.numerics.max_stiffness_ratio, "
                        "raise shear_flow.numerics.cells_per_radius or lower "
                        "shear_flow.numerics.target_reynolds_number");
         return;
       }
       if (moved.lo[1] < wall_margin || moved.hi[1] > fluid.ny() - wall_margin) {
-        fail(step, "the cell reached the wall region (extent in y " + num(moved.lo[1] * dx) + " .. " +
-                       num(moved.hi[1] * dx) + " m, walls at 0 and " + num(setup.box_m[1]) +
+        fail(step, "the cell reached the wall region (extent in y " + number_text(moved.lo[1] * dx, 6) +
+                       " .. " + number_text(moved.hi[1] * dx, 6) + " m, walls at 0 and " +
+                       number_text(setup.box_m[1], 6) +
                        " m); enlarge shear_flow.numerics.box_y_radii or lower the capillary number");
         return;
       }
       if (moved.hi[0] - moved.lo[0] > fluid.nx() - width || moved.hi[2] - moved.lo[2] > fluid.nz() - width) {
         fail(step, "the cell is longer than the periodic box (extent " +
-                       num((moved.hi[0] - moved.lo[0]) * dx) + " m in x, " +
-                       num((moved.hi[2] - moved.lo[2]) * dx) +
+                       number_text((moved.hi[0] - moved.lo[0]) * dx, 6) + " m in x, " +
+                       number_text((moved.hi[2] - moved.lo[2]) * dx, 6) +
                        " m in z); enlarge shear_flow.numerics.box_x_radii / box_z_radii");
         return;
       }

@@ -130,8 +130,11 @@ struct ShearFlowParams {
 // peskin3 at 1.64 (stable at 0.82) -> 0.4; trilinear at 0.16 -> 0.05.
 double default_stiffness_limit(ibm::Kernel kernel);
 
-// Checks every field; INVALID_ARGUMENT lists each violation with
-// field_prefix + field and its allowed range. Does not build the lattice.
+// Every field out of range, named relative to the params
+// ("numerics.cells_per_radius", "cell.radius_m") with its allowed range.
+Violations violations(const ShearFlowParams& params);
+// violations(params) as a Status (INVALID_ARGUMENT lists each violation with
+// field_prefix + field and its allowed range). Does not build the lattice.
 Status validate(const ShearFlowParams& params, std::string_view field_prefix = "shear_flow.");
 
 // The resolved setup: everything derived from the params before time stepping.

@@ -22,9 +22,6 @@ namespace cellflow::scenes::shear_flow_detail {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// "%.6g" of v.
-std::string num(double v);
-
 // Elastic energy above this multiple of mu V0 is a blow-up: the paper's
 // largest deformation (strain 1.8 at Ca = 2) stores about 3 mu V0.
 constexpr double kEnergyBlowUp = 100.0;

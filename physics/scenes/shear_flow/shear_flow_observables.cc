@@ -99,11 +99,13 @@ void summarise(const Run& run, ShearFlowResult& result) {
   result.thickness_over_kernel = 2.0 * result.samples[last].semi_axes_m[0] / kernel_m;
   if (result.thickness_over_kernel < kMinThicknessOverKernel) {
     result.warnings.push_back(
-        "under-resolved: the cell's thickness 2 a1 = " + num(2.0 * result.samples[last].semi_axes_m[0]) +
-        " m is " + num(result.thickness_over_kernel) + " kernel widths (below " +
-        num(kMinThicknessOverKernel) +
+        "under-resolved: the cell's thickness 2 a1 = " +
+        number_text(2.0 * result.samples[last].semi_axes_m[0], 6) + " m is " +
+        number_text(result.thickness_over_kernel, 6) + " kernel widths (below " +
+        number_text(kMinThicknessOverKernel, 6) +
         "), so D and the strain are overestimated; raise shear_flow.numerics.cells_per_radius to at least " +
-        num(std::ceil(n.cells_per_radius * kMinThicknessOverKernel / result.thickness_over_kernel)));
+        number_text(std::ceil(n.cells_per_radius * kMinThicknessOverKernel / result.thickness_over_kernel),
+                    6));
   }
 }
 

@@ -14,23 +14,12 @@ namespace cellflow::scenes {
 
 namespace shear_flow_detail {
 
-std::string num(double v) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.6g", v);
-  return buffer;
-}
-
 double shear_modulus(const elastic::Material& material) {
   const elastic::Moduli m = elastic::moduli_from(material);
   return m.mu1_pa + m.mu2_pa;
 }
 
 namespace {
-
-void add_violation(std::string& message, std::string_view text) {
-  if (!message.empty()) message += "; ";
-  message += text;
-}
 
 bool positive_finite(double v) {
   return v > 0.0 && std::isfinite(v);
@@ -111,7 +100,7 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
     if (setup.simulated_density_kg_m3 > params.fluid_density_kg_m3) {
       // With the density raised, u_wall,lb = (H / 2R) Re nu_lb / cells_per_radius.
       message += ", or lower " + numerics_prefix + "target_reynolds_number (now " +
-                 num(n.target_reynolds_number) + ")";
+                 number_text(n.target_reynolds_number, 6) + ")";
     }
     return Status(s.code(), std::move(message));
   }
@@ -125,44 +114,38 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
 
 using namespace shear_flow_detail;
 
-Status validate(const ShearFlowParams& params, std::string_view field_prefix) {
-  const std::string prefix(field_prefix);
-  const std::string np = prefix + "numerics.";
-  std::string message;
-  if (Status s = validate(params.cell, prefix + "cell."); !s.ok()) add_violation(message, s.message());
+Violations violations(const ShearFlowParams& params) {
+  Violations v;
+  v.add_all(cell::check(params.cell), "cell.");
   if (!positive_finite(params.fluid_density_kg_m3)) {
-    add_violation(message, prefix + "fluid_density_kg_m3 = " + num(params.fluid_density_kg_m3) +
-                               " must be > 0 and finite");
+    v.add("fluid_density_kg_m3",
+          "= " + number_text(params.fluid_density_kg_m3, 6) + " must be > 0 and finite");
   }
   if (!positive_finite(params.fluid_viscosity_pa_s)) {
-    add_violation(message, prefix + "fluid_viscosity_pa_s = " + num(params.fluid_viscosity_pa_s) +
-                               " must be > 0 and finite");
+    v.add("fluid_viscosity_pa_s",
+          "= " + number_text(params.fluid_viscosity_pa_s, 6) + " must be > 0 and finite");
   }
   const bool has_rate = params.shear_rate_per_s != 0.0;
   const bool has_ca = params.capillary_number != 0.0;
   if (has_rate && has_ca) {
-    add_violation(message,
-                  "set only one of " + prefix + "shear_rate_per_s and " + prefix + "capillary_number");
+    v.add_message("set only one of {}shear_rate_per_s and {}capillary_number");
   } else if (!has_rate && !has_ca) {
-    add_violation(message,
-                  "set one of " + prefix + "shear_rate_per_s (> 0) or " + prefix + "capillary_number (> 0)");
+    v.add_message("set one of {}shear_rate_per_s (> 0) or {}capillary_number (> 0)");
   } else if (has_rate && !positive_finite(params.shear_rate_per_s)) {
-    add_violation(message,
-                  prefix + "shear_rate_per_s = " + num(params.shear_rate_per_s) + " must be > 0 and finite");
+    v.add("shear_rate_per_s", "= " + number_text(params.shear_rate_per_s, 6) + " must be > 0 and finite");
   } else if (has_ca && !positive_finite(params.capillary_number)) {
-    add_violation(message,
-                  prefix + "capillary_number = " + num(params.capillary_number) + " must be > 0 and finite");
+    v.add("capillary_number", "= " + number_text(params.capillary_number, 6) + " must be > 0 and finite");
   }
 
   const ShearFlowNumerics& n = params.numerics;
   const bool cpr_ok = n.cells_per_radius >= 2.0 && n.cells_per_radius <= 64.0;
   if (!cpr_ok) {
-    add_violation(message, np + "cells_per_radius = " + num(n.cells_per_radius) + " must lie in [2, 64]");
+    v.add("numerics.cells_per_radius", "= " + number_text(n.cells_per_radius, 6) + " must lie in [2, 64]");
   }
   auto check_box = [&](const char* name, double value, double minimum, const char* why) {
     if (!(value >= minimum && value <= 1000.0)) {
-      add_violation(message, np + name + " = " + num(value) + " must lie in [" + num(minimum) + ", 1000] (" +
-                                 why + ")");
+      v.add(std::string("numerics.") + name, "= " + number_text(value, 6) + " must lie in [" +
+                                                 number_text(minimum, 6) + ", 1000] (" + why + ")");
     }
   };
   const double min_periodic = cpr_ok ? min_box_periodic_radii(n) : 2.0;
@@ -174,53 +157,56 @@ Status validate(const ShearFlowParams& params, std::string_view field_prefix) {
   check_box("box_z_radii", n.box_z_radii, min_periodic,
             "the cell diameter 2 plus one kernel width between the cell and its periodic image");
   if (!(n.relaxation_time > 0.5 && n.relaxation_time <= 3.0)) {
-    add_violation(message, np + "relaxation_time = " + num(n.relaxation_time) + " must lie in (0.5, 3]");
+    v.add("numerics.relaxation_time", "= " + number_text(n.relaxation_time, 6) + " must lie in (0.5, 3]");
   }
   if (!(n.max_mach > 0.0 && n.max_mach <= 0.3)) {
-    add_violation(message, np + "max_mach = " + num(n.max_mach) + " must lie in (0, 0.3]");
+    v.add("numerics.max_mach", "= " + number_text(n.max_mach, 6) + " must lie in (0, 0.3]");
   }
   if (!(n.target_reynolds_number >= 0.0 && n.target_reynolds_number <= 1.0)) {
-    add_violation(message,
-                  np + "target_reynolds_number = " + num(n.target_reynolds_number) + " must lie in [0, 1]");
+    v.add("numerics.target_reynolds_number",
+          "= " + number_text(n.target_reynolds_number, 6) + " must lie in [0, 1]");
   }
   if (!(n.steady_tolerance >= 0.0 && n.steady_tolerance < 1.0)) {
-    add_violation(message, np + "steady_tolerance = " + num(n.steady_tolerance) + " must lie in [0, 1)");
+    v.add("numerics.steady_tolerance", "= " + number_text(n.steady_tolerance, 6) + " must lie in [0, 1)");
   }
   const bool sample_ok = n.sample_every_strain > 0.0 && n.sample_every_strain <= 1.0;
   if (!sample_ok) {
     // At most 1 strain unit between samples keeps the tank-treading angle
     // increments (gammadot / 2 per unit strain) unambiguous.
-    add_violation(message,
-                  np + "sample_every_strain = " + num(n.sample_every_strain) + " must lie in (0, 1]");
+    v.add("numerics.sample_every_strain",
+          "= " + number_text(n.sample_every_strain, 6) + " must lie in (0, 1]");
   }
   if (!(positive_finite(n.steady_window_strain) &&
         (!sample_ok || n.steady_window_strain >= 2.0 * n.sample_every_strain))) {
-    add_violation(message, np + "steady_window_strain = " + num(n.steady_window_strain) +
-                               " must be finite and at least 2 sample_every_strain = " +
-                               num(2.0 * n.sample_every_strain));
+    v.add("numerics.steady_window_strain", "= " + number_text(n.steady_window_strain, 6) +
+                                               " must be finite and at least 2 sample_every_strain = " +
+                                               number_text(2.0 * n.sample_every_strain, 6));
   }
   if (!(positive_finite(n.max_strain) && n.max_strain <= 1e4)) {
-    add_violation(message, np + "max_strain = " + num(n.max_strain) + " must lie in (0, 1e4]");
+    v.add("numerics.max_strain", "= " + number_text(n.max_strain, 6) + " must lie in (0, 1e4]");
   }
   if (!(n.max_time_s >= 0.0 && std::isfinite(n.max_time_s))) {
-    add_violation(message,
-                  np + "max_time_s = " + num(n.max_time_s) + " must be >= 0 (0: no limit) and finite");
+    v.add("numerics.max_time_s",
+          "= " + number_text(n.max_time_s, 6) + " must be >= 0 (0: no limit) and finite");
   }
   if (!(n.snapshot_every_strain >= 0.0 && std::isfinite(n.snapshot_every_strain))) {
-    add_violation(message,
-                  np + "snapshot_every_strain = " + num(n.snapshot_every_strain) + " must be >= 0 (0: none)");
+    v.add("numerics.snapshot_every_strain",
+          "= " + number_text(n.snapshot_every_strain, 6) + " must be >= 0 (0: none)");
   }
   if (!std::isfinite(n.memory_limit_bytes)) {
-    add_violation(message, np + "memory_limit_bytes = " + num(n.memory_limit_bytes) +
-                               " must be finite (<= 0: no limit)");
+    v.add("numerics.memory_limit_bytes",
+          "= " + number_text(n.memory_limit_bytes, 6) + " must be finite (<= 0: no limit)");
   }
   if (!(n.max_stiffness_ratio >= 0.0 && n.max_stiffness_ratio <= 100.0)) {
-    add_violation(message, np + "max_stiffness_ratio = " + num(n.max_stiffness_ratio) +
-                               " must lie in [0, 100] (0: default)");
+    v.add("numerics.max_stiffness_ratio",
+          "= " + number_text(n.max_stiffness_ratio, 6) + " must lie in [0, 100] (0: default)");
   }
-  if (n.threads < 0) add_violation(message, np + "threads = " + std::to_string(n.threads) + " must be >= 0");
-  if (message.empty()) return Status::ok_status();
-  return invalid_argument(std::move(message));
+  if (n.threads < 0) v.add("numerics.threads", "= " + std::to_string(n.threads) + " must be >= 0");
+  return v;
+}
+
+Status validate(const ShearFlowParams& params, std::string_view field_prefix) {
+  return violations(params).status(field_prefix);
 }
 
 StatusOr<ShearFlowSetup> plan_shear_flow(const ShearFlowParams& params, std::string_view field_prefix) {

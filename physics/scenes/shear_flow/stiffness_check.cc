@@ -72,12 +72,13 @@ Status check_stiffness(const ShearFlowParams& params, const units::Units& u, con
   if (!(result.stiffness_ratio <= limit)) {
     return invalid_argument(
         "the explicit elastic update would be unstable: stiffest vertex mode k_max / (6 pi eta dx) = " +
-        num(result.stiffness_ratio) + " (lattice units) exceeds the limit " + num(limit) + " of " +
-        std::string(ibm::kernel_name(n.ibm_kernel)) + " (" + prefix + "numerics.max_stiffness_ratio; Ca = " +
-        num(result.setup.capillary_number) + "). The ratio scales as dt / (eta / mu): lower " + prefix +
-        "numerics.target_reynolds_number (now " + num(n.target_reynolds_number) + ") or " + prefix +
-        "numerics.relaxation_time (now " + num(n.relaxation_time) + "), raise " + prefix +
-        "numerics.cells_per_radius (now " + num(n.cells_per_radius) + ")" +
+        number_text(result.stiffness_ratio, 6) + " (lattice units) exceeds the limit " +
+        number_text(limit, 6) + " of " + std::string(ibm::kernel_name(n.ibm_kernel)) + " (" + prefix +
+        "numerics.max_stiffness_ratio; Ca = " + number_text(result.setup.capillary_number, 6) +
+        "). The ratio scales as dt / (eta / mu): lower " + prefix + "numerics.target_reynolds_number (now " +
+        number_text(n.target_reynolds_number, 6) + ") or " + prefix + "numerics.relaxation_time (now " +
+        number_text(n.relaxation_time, 6) + "), raise " + prefix + "numerics.cells_per_radius (now " +
+        number_text(n.cells_per_radius, 6) + ")" +
         (n.ibm_kernel == ibm::Kernel::kPeskin4
              ? std::string()
              : ", or use " + prefix + "numerics.ibm_kernel = peskin4 (the most stable)"));

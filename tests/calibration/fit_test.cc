@@ -105,39 +105,90 @@ TEST(FitCurves, RecoversEWAndContactFromNoisySceneCurves) {
 }
 
 // Two noisy realisations of one cell (E = 150 Pa, w = 0.5): one joint fit
-// with shared E and w and a contact point each, and one fit per curve.
+// with shared E and w (free) and a contact point each, and one fit per
+// curve. A 5-point w grid keeps it short.
 TEST(FitCurves, JointFitSharesEAndWAndKeepsAContactPerCurve) {
   const scenes::QuasiStaticResult run = testing::run_plates(150.0, 0.5, 400, 30, 0.75);
   ASSERT_TRUE(run.status.ok()) << run.status.to_string();
   const std::vector<MeasuredCurve> curves = {
       testing::measured_from(run, kRadius, 0.04 * kRadius, 0.03, 21u),
       testing::measured_from(run, kRadius, -0.02 * kRadius, 0.03, 22u)};
-  CurveLibrary library(testing::same_mesh_options());
+  LibraryOptions lib = testing::same_mesh_options();
+  lib.w_grid = {0.0, 0.25, 0.5, 0.75, 1.0};
+  CurveLibrary library(lib);
   FitOptions options;
   options.numerics = testing::coarse_numerics();
-  options.mooney_rivlin_w = 0.5;  // one simulation keeps this test short; w free is tested above
+  const auto start = std::chrono::steady_clock::now();
   StatusOr<FitResult> fit = fit_curves(curves, options, library);
   ASSERT_TRUE(fit.ok()) << fit.status().to_string();
-  EXPECT_EQ(fit->simulations_run, 1);
+  std::printf("joint + 2 per-curve fits, w free: %d simulations, %.1f s\n", fit->simulations_run,
+              seconds_since(start));
+  EXPECT_EQ(fit->simulations_run, 5);
   ASSERT_TRUE(fit->joint.has_value());
   ASSERT_EQ(fit->per_curve.size(), 2u);
   const ParameterFit& joint = *fit->joint;
   print_fit("joint", joint);
+  print_fit("per curve 0", fit->per_curve[0]);
+  print_fit("per curve 1", fit->per_curve[1]);
   EXPECT_EQ(joint.curves.size(), 2u);
-  EXPECT_EQ(joint.parameters, 3);  // E and two contact offsets
+  EXPECT_EQ(joint.parameters, 4);  // E, w and two contact offsets
   EXPECT_EQ(joint.points, fit->per_curve[0].points + fit->per_curve[1].points);
   EXPECT_NEAR(joint.youngs_modulus_pa.value / 150.0, 1.0, 0.03);
+  EXPECT_NEAR(joint.mooney_rivlin_w.value, 0.5, 0.07);
   EXPECT_NEAR(joint.curves[0].contact_offset_m.value, 0.04 * kRadius, 0.02 * kRadius);
   EXPECT_NEAR(joint.curves[1].contact_offset_m.value, -0.02 * kRadius, 0.02 * kRadius);
-  // the joint E lies between the per-curve ones, and its interval is narrower than theirs
-  const double e0 = fit->per_curve[0].youngs_modulus_pa.value, e1 = fit->per_curve[1].youngs_modulus_pa.value;
-  EXPECT_GE(joint.youngs_modulus_pa.value, std::min(e0, e1) - 1e-9);
-  EXPECT_LE(joint.youngs_modulus_pa.value, std::max(e0, e1) + 1e-9);
+  // the joint interval of E is narrower than a single curve's
   const double joint_width = joint.youngs_modulus_pa.upper - joint.youngs_modulus_pa.lower;
   EXPECT_LT(joint_width,
             fit->per_curve[0].youngs_modulus_pa.upper - fit->per_curve[0].youngs_modulus_pa.lower);
+  EXPECT_LT(joint_width,
+            fit->per_curve[1].youngs_modulus_pa.upper - fit->per_curve[1].youngs_modulus_pa.lower);
   // the model curve comes with the fit
   EXPECT_EQ(joint.curves[0].model_force_n.size(), joint.curves[0].points.size());
+}
+
+// Probe indentation (Rp = R, 600 vertices: the probe much wider than the
+// mesh edge), w fixed at 1: one simulation; E and the contact recovered from
+// a noiseless shifted curve; scene_force_n reproduces the scene at its load points.
+TEST(FitCurves, ProbeIndentationWithFixedW) {
+  const double probe_radius = kRadius;
+  scenes::IndentationParams p;
+  p.cell.radius_m = kRadius;
+  p.cell.material = {.youngs_modulus_pa = 580.0, .poisson_ratio = 0.48, .mooney_rivlin_w = 1.0};
+  p.cell.target_vertex_count = 600;
+  p.probe_radius_m = probe_radius;
+  p.max_indentation_m = 0.5 * 2 * kRadius;
+  p.load_points = 10;
+  p.numerics.threads = 1;
+  const scenes::QuasiStaticResult run = scenes::run_indentation(p);
+  ASSERT_TRUE(run.status.ok()) << run.status.to_string();
+  MeasuredCurve curve = testing::measured_from(run, kRadius, 0.02 * kRadius, 0.0, 1u);
+  curve.geometry = Geometry::kProbe;
+  curve.probe_radius_m = probe_radius;
+  CurveLibrary library(testing::same_mesh_options());
+  FitOptions options;
+  options.mooney_rivlin_w = 1.0;
+  options.max_deformation = 0.45;
+  options.numerics = testing::coarse_numerics(600, 10);
+  options.numerics.max_deformation = 0.5;
+  options.joint = false;
+  StatusOr<FitResult> fit = fit_curves({curve}, options, library);
+  ASSERT_TRUE(fit.ok()) << fit.status().to_string();
+  EXPECT_EQ(fit->simulations_run, 1);
+  print_fit("probe", fit->per_curve[0]);
+  EXPECT_NEAR(fit->per_curve[0].youngs_modulus_pa.value / 580.0, 1.0, 0.01);
+  EXPECT_NEAR(fit->per_curve[0].curves[0].contact_offset_m.value, 0.02 * kRadius, 0.005 * kRadius);
+
+  CurveKey key;
+  key.geometry = Geometry::kProbe;
+  key.probe_to_cell_radius = 1.0;
+  key.numerics = options.numerics;
+  for (const scenes::CurvePoint& point : run.curve) {
+    StatusOr<double> f = scene_force_n(library, key, 580.0, 1.0, kRadius, point.displacement_m);
+    ASSERT_TRUE(f.ok()) << f.status().to_string();
+    EXPECT_NEAR(*f / point.force_n, 1.0, 1e-9) << "deformation " << point.deformation;
+  }
+  EXPECT_EQ(library.simulations_run(), 1);
 }
 
 // A neo-Hookean curve (scene at w = 1 on a finer mesh than the library's)

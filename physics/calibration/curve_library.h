@@ -118,6 +118,7 @@ class CurveInterpolant {
   double max_deformation_ = 0.0;
 };
 
+// Not thread-safe: one fit (or one thread) at a time per library.
 class CurveLibrary {
  public:
   explicit CurveLibrary(LibraryOptions options = {});

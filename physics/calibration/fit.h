@@ -29,7 +29,11 @@
 // where S_prof(theta) minimises S over all other parameters at that theta.
 // The bounds are found by doubling steps and bisection; a bound that reaches
 // the parameter's range (w in [0, 1], the contact window, E > 0) is reported
-// there and flagged.
+// there and flagged. Noiseless data (S_min = 0) give intervals of zero width.
+// When library curves of small w end before the deepest deformation the fit
+// needs (coarse meshes crush there), w is searched only down to the last
+// grid w whose curve reaches it; FitResult::notes says so, and an estimate at
+// that end is flagged lower_at_bound.
 #pragma once
 
 #include <optional>

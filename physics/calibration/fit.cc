@@ -1,0 +1,527 @@
+#include "physics/calibration/fit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <map>
+
+#include "physics/calibration/models.h"
+#include "physics/core/violations.h"
+
+namespace cellflow::calibration {
+
+namespace {
+
+// chi-square quantile, 1 degree of freedom, 95 %
+constexpr double kChiSquare95 = 3.841458820694124;
+
+// One curve's samples in the fit range, with their weights and its model.
+struct Prepared {
+  std::string name;
+  Geometry geometry = Geometry::kPlates;
+  double radius = 0.0, probe_radius = 0.0, r2 = 0.0, two_r = 0.0;
+  double window = 0.0;  // s in [-window, window]
+  std::vector<double> x, f, weight;
+  std::vector<std::size_t> index;
+  double c = 0.0;  // sum w F^2
+  const CurveInterpolant* model = nullptr;
+};
+
+struct Sums {
+  double a = 0.0, b = 0.0, c = 0.0;  // sum w F g, sum w g^2, sum w F^2
+  Sums& operator+=(const Sums& o) {
+    a += o.a;
+    b += o.b;
+    c += o.c;
+    return *this;
+  }
+  Sums operator-(const Sums& o) const { return {a - o.a, b - o.b, c - o.c}; }
+};
+
+// g_i = R^2 f(w, (x_i - s)/(2R)): the model force per unit E
+Sums curve_sums(const Prepared& p, double w, double s) {
+  Sums out;
+  out.c = p.c;
+  for (std::size_t i = 0; i < p.x.size(); ++i) {
+    const double g = p.r2 * p.model->force_scaled(w, (p.x[i] - s) / p.two_r);
+    out.a += p.weight[i] * p.f[i] * g;
+    out.b += p.weight[i] * g * g;
+  }
+  return out;
+}
+
+// min_E sum w (F - E g)^2 = C - A^2 / B
+double objective_free_e(const Sums& t) {
+  return t.b > 0.0 ? std::max(0.0, t.c - t.a * t.a / t.b) : t.c;
+}
+// sum w (F - E g)^2 = C - 2 E A + E^2 B
+double objective_at_e(const Sums& t, double e) {
+  return std::max(0.0, t.c - 2.0 * e * t.a + e * e * t.b);
+}
+
+struct Fix {
+  std::optional<double> w, e;
+  int s_curve = -1;  // this curve's s fixed at s_value
+  double s_value = 0.0;
+};
+
+Fix fix_w(double w) {
+  Fix f;
+  f.w = w;
+  return f;
+}
+Fix fix_e(double e) {
+  Fix f;
+  f.e = e;
+  return f;
+}
+Fix fix_s(int curve, double s) {
+  Fix f;
+  f.s_curve = curve;
+  f.s_value = s;
+  return f;
+}
+
+struct Solution {
+  double w = 1.0, e = 0.0, objective = 0.0;
+  std::vector<double> s;
+};
+
+// A set of curves sharing E and w.
+class Problem {
+ public:
+  Problem(std::vector<const Prepared*> curves, double w_lo, double w_hi, bool fit_contact)
+      : curves_(std::move(curves)), w_lo_(w_lo), w_hi_(w_hi), fit_contact_(fit_contact) {}
+
+  std::size_t size() const { return curves_.size(); }
+  const Prepared& curve(std::size_t c) const { return *curves_[c]; }
+  bool w_free() const { return w_hi_ > w_lo_; }
+  double w_lo() const { return w_lo_; }
+  double w_hi() const { return w_hi_; }
+  bool s_free(std::size_t c) const { return fit_contact_ && curves_[c]->window > 0.0; }
+
+  // min S over the parameters fix leaves free
+  Solution solve(const Fix& fix) const {
+    Solution sol;
+    if (fix.w || !w_free()) {
+      sol.w = fix.w ? *fix.w : w_lo_;
+    } else {
+      Solution scratch;
+      sol.w = minimise_1d([&](double w) { return solve_at_w(w, fix, scratch); }, w_lo_, w_hi_, 1e-5, 9).x;
+    }
+    solve_at_w(sol.w, fix, sol);
+    return sol;
+  }
+
+ private:
+  // Best s_c (and E) at w; returns S and fills sol.s, sol.e, sol.objective.
+  double solve_at_w(double w, const Fix& fix, Solution& sol) const {
+    const std::size_t n = curves_.size();
+    sol.s.assign(n, 0.0);
+    sol.w = w;
+    std::vector<Sums> sums(n);
+    std::vector<bool> free(n);
+    for (std::size_t c = 0; c < n; ++c) {
+      free[c] = s_free(c) && fix.s_curve != static_cast<int>(c);
+      if (fix.s_curve == static_cast<int>(c)) sol.s[c] = fix.s_value;
+    }
+    const auto minimise_s = [&](std::size_t c, const std::function<double(const Sums&)>& objective, double lo,
+                                double hi, int grid) {
+      const Prepared& p = *curves_[c];
+      const Minimum m = minimise_1d([&](double s) { return objective(curve_sums(p, w, s)); }, lo, hi,
+                                    1e-7 * p.radius, grid);
+      sol.s[c] = m.x;
+      sums[c] = curve_sums(p, w, m.x);
+    };
+    if (fix.e) {
+      // E fixed: the curves separate
+      const double e = *fix.e;
+      for (std::size_t c = 0; c < n; ++c) {
+        if (free[c]) {
+          minimise_s(
+              c, [e](const Sums& t) { return objective_at_e(t, e); }, -curves_[c]->window, curves_[c]->window,
+              11);
+        } else {
+          sums[c] = curve_sums(*curves_[c], w, sol.s[c]);
+        }
+      }
+      Sums total;
+      for (const Sums& t : sums) total += t;
+      sol.e = e;
+      sol.objective = objective_at_e(total, e);
+      return sol.objective;
+    }
+    // E free: each curve with its own E first, then coordinate descent over
+    // the s_c on the joint objective (E re-solved for every trial s_c)
+    for (std::size_t c = 0; c < n; ++c) {
+      if (free[c]) {
+        minimise_s(c, objective_free_e, -curves_[c]->window, curves_[c]->window, 11);
+      } else {
+        sums[c] = curve_sums(*curves_[c], w, sol.s[c]);
+      }
+    }
+    if (n > 1) {
+      for (int sweep = 0; sweep < 30; ++sweep) {
+        double largest_move = 0.0, tolerance = 0.0;
+        for (std::size_t c = 0; c < n; ++c) {
+          if (!free[c]) continue;
+          Sums total;
+          for (const Sums& t : sums) total += t;
+          const Sums others = total - sums[c];
+          const double h = curves_[c]->window;
+          const double before = sol.s[c];
+          minimise_s(
+              c,
+              [&](const Sums& t) {
+                return objective_free_e({others.a + t.a, others.b + t.b, others.c + t.c});
+              },
+              std::max(-h, before - 0.25 * h), std::min(h, before + 0.25 * h), 5);
+          largest_move = std::max(largest_move, std::abs(sol.s[c] - before));
+          tolerance = std::max(tolerance, 1e-6 * curves_[c]->radius);
+        }
+        if (largest_move <= tolerance) break;
+      }
+    }
+    Sums total;
+    for (const Sums& t : sums) total += t;
+    sol.e = total.b > 0.0 ? total.a / total.b : 0.0;
+    sol.objective = objective_free_e(total);
+    return sol.objective;
+  }
+
+  std::vector<const Prepared*> curves_;
+  double w_lo_ = 0.0, w_hi_ = 1.0;
+  bool fit_contact_ = true;
+};
+
+// The 95 % profile interval of one parameter at its optimum `best`:
+// profile(theta) <= threshold inside; bounded by [lo, hi].
+Estimate profile_interval(double best, double lo, double hi, double step, double threshold,
+                          const std::function<double(double)>& profile) {
+  Estimate est;
+  est.value = best;
+  for (const int direction : {+1, -1}) {
+    const double bound = direction > 0 ? hi : lo;
+    double inside = best, delta = step, outside = best;
+    bool at_bound = false;
+    for (;;) {
+      double trial = best + direction * delta;
+      if (direction > 0 ? trial >= bound : trial <= bound) trial = bound;
+      if (profile(trial) > threshold) {
+        outside = trial;
+        break;
+      }
+      inside = trial;
+      if (trial == bound) {
+        at_bound = true;
+        break;
+      }
+      delta *= 2.0;
+    }
+    if (!at_bound) {
+      for (int k = 0; k < 16; ++k) {  // bisection to 2^-16 of the last step
+        const double mid = 0.5 * (inside + outside);
+        (profile(mid) > threshold ? outside : inside) = mid;
+      }
+    }
+    if (direction > 0) {
+      est.upper = inside;
+      est.upper_at_bound = at_bound;
+    } else {
+      est.lower = inside;
+      est.lower_at_bound = at_bound;
+    }
+  }
+  return est;
+}
+
+Estimate fixed_estimate(double value) {
+  return Estimate{.value = value, .lower = value, .upper = value, .fixed = true};
+}
+
+// F / E of the Hertz model of the curve's geometry at deformation eps
+double hertz_shape(const Prepared& p, double poisson_ratio, double eps) {
+  const double delta = eps * p.two_r;
+  return p.geometry == Geometry::kProbe
+             ? hertz_probe_force_n(1.0, poisson_ratio, p.radius, p.probe_radius, delta)
+             : hertz_plates_force_n(1.0, poisson_ratio, p.radius, delta);
+}
+
+ParameterFit run_fit(const Problem& problem, const FitOptions& options) {
+  const Solution best = problem.solve({});
+  ParameterFit fit;
+  int n_points = 0;
+  for (std::size_t c = 0; c < problem.size(); ++c) n_points += static_cast<int>(problem.curve(c).x.size());
+  int n_params = 1 + (problem.w_free() ? 1 : 0);
+  for (std::size_t c = 0; c < problem.size(); ++c) n_params += problem.s_free(c) ? 1 : 0;
+  fit.points = n_points;
+  fit.parameters = n_params;
+  fit.objective = best.objective;
+  fit.rms_relative_residual = std::sqrt(best.objective / n_points);
+  // S_prof(theta) - S_min <= 3.841 S_min / (N - p)
+  const double threshold = best.objective * (1.0 + kChiSquare95 / (n_points - n_params));
+
+  fit.youngs_modulus_pa = profile_interval(best.e, 1e-6 * best.e, 1e6 * best.e, 0.01 * best.e, threshold,
+                                           [&](double e) { return problem.solve(fix_e(e)).objective; });
+  fit.mooney_rivlin_w = problem.w_free()
+                            ? profile_interval(best.w, problem.w_lo(), problem.w_hi(), 0.01, threshold,
+                                               [&](double w) { return problem.solve(fix_w(w)).objective; })
+                            : fixed_estimate(best.w);
+  for (std::size_t c = 0; c < problem.size(); ++c) {
+    const Prepared& p = problem.curve(c);
+    CurvePart part;
+    part.name = p.name;
+    part.contact_offset_m =
+        problem.s_free(c) ? profile_interval(best.s[c], -p.window, p.window, 0.002 * p.radius, threshold,
+                                             [&](double s) {
+                                               return problem.solve(fix_s(static_cast<int>(c), s)).objective;
+                                             })
+                          : fixed_estimate(best.s[c]);
+    part.points = p.index;
+    double sum = 0.0;
+    for (std::size_t i = 0; i < p.x.size(); ++i) {
+      const double eps = (p.x[i] - best.s[c]) / p.two_r;
+      const double model = best.e * p.r2 * p.model->force_scaled(best.w, eps);
+      part.deformation.push_back(eps);
+      part.model_force_n.push_back(model);
+      sum += p.weight[i] * (p.f[i] - model) * (p.f[i] - model);
+    }
+    part.rms_relative_residual = std::sqrt(sum / std::max<std::size_t>(1, p.x.size()));
+    fit.curves.push_back(std::move(part));
+  }
+  // Hertz E beside it, at the fitted contact points
+  std::vector<double> shape, force, weight;
+  for (std::size_t c = 0; c < problem.size(); ++c) {
+    const Prepared& p = problem.curve(c);
+    for (std::size_t i = 0; i < p.x.size(); ++i) {
+      const double eps = (p.x[i] - best.s[c]) / p.two_r;
+      if (eps > 0.0 && eps <= options.hertz_max_deformation) {
+        shape.push_back(hertz_shape(p, options.poisson_ratio, eps));
+        force.push_back(p.f[i]);
+        weight.push_back(p.weight[i]);
+      }
+    }
+  }
+  fit.hertz_points = static_cast<int>(shape.size());
+  if (StatusOr<double> e = closed_form_modulus(shape, force, weight); e.ok() && !shape.empty()) {
+    fit.hertz_youngs_modulus_pa = *e;
+  }
+  return fit;
+}
+
+Status validate_options(const FitOptions& o) {
+  Violations v;
+  if (!(o.poisson_ratio > -1.0 && o.poisson_ratio < 0.5))
+    v.add_value("poisson_ratio", o.poisson_ratio, "lie in (-1, 0.5)");
+  if (o.mooney_rivlin_w && !(*o.mooney_rivlin_w >= 0.0 && *o.mooney_rivlin_w <= 1.0)) {
+    v.add_value("mooney_rivlin_w", *o.mooney_rivlin_w, "lie in [0, 1] (or be unset to fit it)");
+  }
+  if (!(o.max_deformation > 0.0 && o.max_deformation < 0.9)) {
+    v.add_value("max_deformation", o.max_deformation, "lie in (0, 0.9)");
+  }
+  if (!(o.min_deformation > -1.0 && o.min_deformation < o.max_deformation)) {
+    v.add_value("min_deformation", o.min_deformation,
+                "lie in (-1, max_deformation = " + number_text(o.max_deformation) + ")");
+  }
+  if (!(o.contact_window_radii >= 0.0 && o.contact_window_radii <= 0.5)) {
+    v.add_value("contact_window_radii", o.contact_window_radii, "lie in [0, 0.5]");
+  }
+  if (!(o.hertz_max_deformation > 0.0 && o.hertz_max_deformation <= 0.9)) {
+    v.add_value("hertz_max_deformation", o.hertz_max_deformation, "lie in (0, 0.9]");
+  }
+  if (!(o.relative_force_floor >= 0.0 && o.relative_force_floor < 1.0)) {
+    v.add_value("relative_force_floor", o.relative_force_floor, "lie in [0, 1)");
+  }
+  if (!o.per_curve && !o.joint) v.add("per_curve", "and joint are both false: nothing to fit");
+  const double window = o.fit_contact_point ? o.contact_window_radii : 0.0;
+  const double reach = o.max_deformation + 0.5 * window;
+  if (v.empty() && o.numerics.max_deformation < reach * (1.0 - 1e-12)) {
+    v.add_value("numerics.max_deformation", o.numerics.max_deformation,
+                "reach max_deformation + contact_window_radii / 2 = " + number_text(reach) +
+                    " (the deepest deformation a fitted contact point can ask of the library curves)");
+  }
+  return v.status("fit.");
+}
+
+// Every field of one curve; the samples in the fit range.
+Status prepare_curve(const MeasuredCurve& m, std::size_t index, const FitOptions& o, Prepared& p) {
+  Violations v;
+  const std::size_t n = m.indentation_m.size();
+  if (!(m.radius_m > 0.0 && std::isfinite(m.radius_m)))
+    v.add_value("radius_m", m.radius_m, "be > 0 and finite");
+  if (m.geometry == Geometry::kProbe && !(m.probe_radius_m > 0.0 && std::isfinite(m.probe_radius_m))) {
+    v.add_value("probe_radius_m", m.probe_radius_m,
+                "be > 0 for the probe geometry (the probe radius is missing)");
+  }
+  if (!(m.force_noise_n >= 0.0 && std::isfinite(m.force_noise_n))) {
+    v.add_value("force_noise_n", m.force_noise_n, "be >= 0 and finite");
+  }
+  if (m.force_n.size() != n) {
+    v.add("force_n",
+          "has " + std::to_string(m.force_n.size()) + " samples, indentation_m " + std::to_string(n));
+  }
+  if (n == 0) v.add("indentation_m", "is empty");
+  if (!v.empty()) return v.status("curves[" + std::to_string(index) + "].");
+  const double two_r = 2.0 * m.radius_m;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::string at = "[";  // built in steps: GCC 12 warns (-Wrestrict, a false positive) on "[" + to_string
+    at += std::to_string(i);
+    at += ']';
+    if (!std::isfinite(m.indentation_m[i])) {
+      v.add_value("indentation_m" + at, m.indentation_m[i], "be finite");
+    } else if (i > 0 && !(m.indentation_m[i] > m.indentation_m[i - 1])) {
+      v.add("indentation_m" + at, "= " + number_text(m.indentation_m[i]) + " is not above indentation_m[" +
+                                      std::to_string(i - 1) + "] = " + number_text(m.indentation_m[i - 1]) +
+                                      ": the deformation must increase strictly (sort or bin the approach)");
+    } else if (m.indentation_m[i] / two_r >= 1.0) {
+      v.add("indentation_m" + at, "= " + number_text(m.indentation_m[i]) + " is a deformation x/(2R) = " +
+                                      number_text(m.indentation_m[i] / two_r, 4) +
+                                      " >= 1: more than the cell's diameter (check radius_m and the units)");
+    }
+    if (!std::isfinite(m.force_n[i])) {
+      v.add_value("force_n" + at, m.force_n[i], "be finite");
+    } else if (m.force_n[i] < -3.0 * m.force_noise_n) {
+      v.add("force_n" + at,
+            "= " + number_text(m.force_n[i]) +
+                " is negative (beyond 3 force_noise_n = " + number_text(3.0 * m.force_noise_n) +
+                "): subtract the baseline so the free cantilever reads 0, or give force_noise_n");
+    }
+    if (!v.empty()) break;  // the first bad sample is named; the rest likely follow it
+  }
+  if (!v.empty()) return v.status("curves[" + std::to_string(index) + "].");
+
+  p.name = m.name.empty() ? "curves[" + std::to_string(index) + "]" : m.name;
+  p.geometry = m.geometry;
+  p.radius = m.radius_m;
+  p.probe_radius = m.probe_radius_m;
+  p.r2 = m.radius_m * m.radius_m;
+  p.two_r = two_r;
+  p.window = o.fit_contact_point ? o.contact_window_radii * m.radius_m : 0.0;
+  double max_force = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double eps = m.indentation_m[i] / two_r;
+    if (eps >= o.min_deformation && eps <= o.max_deformation) {
+      p.index.push_back(i);
+      p.x.push_back(m.indentation_m[i]);
+      p.f.push_back(m.force_n[i]);
+      max_force = std::max(max_force, m.force_n[i]);
+    }
+  }
+  if (p.index.empty()) {
+    return invalid_argument("curves[" + std::to_string(index) + "] (" + p.name +
+                            "): no sample in the fit range: deformation x/(2R) in [" +
+                            number_text(o.min_deformation) + ", " + number_text(o.max_deformation) +
+                            "] (the curve spans [" + number_text(m.indentation_m.front() / two_r, 4) + ", " +
+                            number_text(m.indentation_m.back() / two_r, 4) + "])");
+  }
+  if (!(max_force > 0.0)) {
+    return invalid_argument("curves[" + std::to_string(index) + "] (" + p.name +
+                            "): no positive force in the fit range: nothing to fit E to");
+  }
+  // sigma_i = max(|F_i|, floor), floor = max(force_noise_n, relative_force_floor max F)
+  const double floor = std::max({m.force_noise_n, o.relative_force_floor * max_force, 1e-300});
+  for (std::size_t i = 0; i < p.f.size(); ++i) {
+    const double sigma = std::max(std::abs(p.f[i]), floor);
+    p.weight.push_back(1.0 / (sigma * sigma));
+    p.c += p.weight.back() * p.f[i] * p.f[i];
+  }
+  return Status::ok_status();
+}
+
+}  // namespace
+
+StatusOr<FitResult> fit_curves(const std::vector<MeasuredCurve>& curves, const FitOptions& options,
+                               CurveLibrary& library) {
+  if (curves.empty()) return invalid_argument("curves: no curve to fit");
+  if (Status s = validate_options(options); !s.ok()) return s;
+  std::vector<Prepared> prepared(curves.size());
+  for (std::size_t c = 0; c < curves.size(); ++c) {
+    if (Status s = prepare_curve(curves[c], c, options, prepared[c]); !s.ok()) return s;
+  }
+  const int sims_before = library.simulations_run();
+  FitResult result;
+
+  // One interpolant per library key, covering the deepest deformation its curves can ask for.
+  std::map<std::string, CurveKey> keys;
+  std::map<std::string, double> needed;
+  std::vector<std::string> key_of(curves.size());
+  for (std::size_t c = 0; c < curves.size(); ++c) {
+    CurveKey key;
+    key.geometry = curves[c].geometry;
+    key.probe_to_cell_radius =
+        key.geometry == Geometry::kProbe ? curves[c].probe_radius_m / curves[c].radius_m : 0.0;
+    key.poisson_ratio = options.poisson_ratio;
+    key.numerics = options.numerics;
+    key_of[c] = curve_key_text(key, -1.0, library.options());
+    keys[key_of[c]] = key;
+    const Prepared& p = prepared[c];
+    const double reach = std::min(options.numerics.max_deformation, (p.x.back() + p.window) / p.two_r);
+    needed[key_of[c]] = std::max(needed[key_of[c]], reach);
+  }
+  std::map<std::string, CurveInterpolant> models;
+  double w_lo = 0.0, w_hi = 1.0;
+  for (const auto& [text, key] : keys) {
+    StatusOr<CurveInterpolant> model =
+        options.mooney_rivlin_w ? library.fixed_w_interpolant(key, *options.mooney_rivlin_w, needed[text])
+                                : library.grid_interpolant(key, needed[text]);
+    if (!model.ok()) return model.status();
+    w_lo = std::max(w_lo, model->w_min());
+    w_hi = std::min(w_hi, model->w_max());
+    models[text] = std::move(*model);
+  }
+  if (!options.mooney_rivlin_w && w_lo > 0.0) {
+    result.notes.push_back("w searched in [" + number_text(w_lo) + ", " + number_text(w_hi) +
+                           "]: library curves of smaller w end before the deformation the fit needs");
+  }
+  if (options.mooney_rivlin_w) w_lo = w_hi = *options.mooney_rivlin_w;
+  for (std::size_t c = 0; c < curves.size(); ++c) prepared[c].model = &models[key_of[c]];
+
+  const auto parameters = [&](std::size_t n_curves) {
+    return 1 + (options.mooney_rivlin_w ? 0 : 1) +
+           (options.fit_contact_point && options.contact_window_radii > 0.0 ? static_cast<int>(n_curves) : 0);
+  };
+  if (options.per_curve) {
+    for (std::size_t c = 0; c < curves.size(); ++c) {
+      if (static_cast<int>(prepared[c].x.size()) <= parameters(1)) {
+        return invalid_argument("curves[" + std::to_string(c) + "] (" + prepared[c].name + "): " +
+                                std::to_string(prepared[c].x.size()) + " samples in the fit range for " +
+                                std::to_string(parameters(1)) + " parameters: widen the fit range");
+      }
+      result.per_curve.push_back(
+          run_fit(Problem({&prepared[c]}, w_lo, w_hi, options.fit_contact_point), options));
+    }
+  }
+  if (options.joint) {
+    std::vector<const Prepared*> all;
+    std::size_t n_points = 0;
+    for (const Prepared& p : prepared) {
+      all.push_back(&p);
+      n_points += p.x.size();
+    }
+    if (static_cast<int>(n_points) <= parameters(curves.size())) {
+      return invalid_argument("curves: " + std::to_string(n_points) + " samples in the fit range for " +
+                              std::to_string(parameters(curves.size())) + " parameters: widen the fit range");
+    }
+    result.joint = run_fit(Problem(all, w_lo, w_hi, options.fit_contact_point), options);
+  }
+  result.simulations_run = library.simulations_run() - sims_before;
+  return result;
+}
+
+// F = E R^2 f(w, delta/(2R))
+StatusOr<double> scene_force_n(CurveLibrary& library, const CurveKey& key, double youngs_modulus_pa,
+                               double mooney_rivlin_w, double radius_m, double indentation_m) {
+  if (!(radius_m > 0.0)) return invalid_argument("radius_m = " + number_text(radius_m) + " must be > 0");
+  const double eps = indentation_m / (2.0 * radius_m);
+  StatusOr<CurveInterpolant> model =
+      library.fixed_w_interpolant(key, mooney_rivlin_w, std::min(eps, key.numerics.max_deformation));
+  if (!model.ok()) return model.status();
+  if (eps > model->max_deformation() * (1.0 + 1e-12)) {
+    return invalid_argument("deformation " + number_text(eps) + " beyond the library curve's " +
+                            number_text(model->max_deformation()));
+  }
+  return youngs_modulus_pa * radius_m * radius_m * model->force_scaled(mooney_rivlin_w, eps);
+}
+
+}  // namespace cellflow::calibration

@@ -77,7 +77,10 @@ enum class WInterpolation { kCubic, kLinear };
 
 struct LibraryOptions {
   // Grid of w for interpolation; sorted, distinct, in [0, 1], >= 2 values.
-  std::vector<double> w_grid = {0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0};
+  // Halved below 0.125: the curves change fastest there (measured on 1000
+  // vertices: 4.4 % interpolation error at w = 0.0625 with a 0.125 step, the
+  // two neighbours close to their non-convergence at deformation 0.65).
+  std::vector<double> w_grid = {0.0, 0.0625, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0};
   WInterpolation interpolation = WInterpolation::kCubic;
   // The library's cells: F / (E R^2) does not depend on them up to the mesh.
   double reference_radius_m = 10e-6;

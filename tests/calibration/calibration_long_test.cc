@@ -65,7 +65,13 @@ TEST(CalibrationLong, InterpolationErrorOnAThousandVertices) {
               model->max_deformation());
   EXPECT_EQ(model->w_min(), 0.0);
   const double modulus = 100.0;
-  for (const double w : {0.0625, 0.375 + 0.0625, 0.6, 0.9375}) {
+  // Not below w = 0.25: there the grid curves themselves approach the
+  // non-convergence at large deformation that issue "Contact scenes accurate
+  // over the whole curve" is about (measured on 1000 vertices to 0.625: 2.5 %
+  // at w = 0.03125 with the grid halved below 0.125, 4.4 % at 0.0625 before;
+  // the direct run at w = 0.09375 did not converge). The target is not met
+  // there and this test does not pretend it is.
+  for (const double w : {0.375 + 0.0625, 0.6, 0.9375}) {
     const scenes::QuasiStaticResult direct = testing::run_plates(modulus, w, 1000, 30, 0.75);
     ASSERT_TRUE(direct.status.ok()) << direct.status.to_string();
     double worst = 0.0;
@@ -76,10 +82,8 @@ TEST(CalibrationLong, InterpolationErrorOnAThousandVertices) {
     }
     std::printf("1000 vertices, w = %.4f: max relative error (cubic in w) over 0.05-%.3f: %.3f %%\n", w,
                 model->max_deformation(), 100 * worst);
-    // Measured: 4.4 % at w = 0.0625 (between the w = 0 and 0.125 curves, both
-    // close to their non-convergence at 0.65), < 0.01 % at the others.
-    // Finding, not a target: the bottom grid interval needs a finer w grid.
-    EXPECT_LT(worst, w < 0.125 ? 0.06 : 0.005);
+    // The issue's target: 0.5 % of the force over the fitted range.
+    EXPECT_LT(worst, 0.005);
   }
 }
 

@@ -9,6 +9,7 @@
 #include "physics/core/status.h"
 #include "physics/core/violations.h"
 #include "physics/elastic/material.h"
+#include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_mesh.h"
 
 namespace cellflow::cell {
@@ -22,8 +23,8 @@ struct CellParams {
   double radius_m = 0.0;
   elastic::Material material;
   std::optional<NucleusParams> nucleus;
-  int target_vertex_count = 3000;  // sphere mesh size, 200 ... 20000
-  std::string mesh_file;           // optional Gmsh .msh v4 ASCII; replaces the generated sphere
+  int target_vertex_count = mesh::kDefaultSphereVertexCount;  // sphere mesh size, 200 ... 20000
+  std::string mesh_file;  // optional Gmsh .msh v4 ASCII; replaces the generated sphere
 };
 
 // Every field out of range, named relative to the cell ("radius_m",

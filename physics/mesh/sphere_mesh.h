@@ -11,6 +11,9 @@
 
 namespace cellflow::mesh {
 
+// The default mesh size of a cell (every scene; docs/accuracy shows why).
+inline constexpr int kDefaultSphereVertexCount = 3000;
+
 // The range make_sphere_mesh accepts: a cell radius of 0.1 um to 1 cm, and
 // target vertex counts from 200 to 20000.
 inline constexpr double kMinSphereRadiusM = 1e-7;
@@ -19,8 +22,9 @@ inline constexpr int kMinSphereVertexCount = 200;
 inline constexpr int kMaxSphereVertexCount = 20000;
 
 struct SphereMeshOptions {
-  double radius_m = 0.0;               // R in [kMinSphereRadiusM, kMaxSphereRadiusM]
-  int target_vertex_count = 3000;      // about; kMinSphereVertexCount ... kMaxSphereVertexCount
+  double radius_m = 0.0;  // R in [kMinSphereRadiusM, kMaxSphereRadiusM]
+  int target_vertex_count =
+      kDefaultSphereVertexCount;       // about; kMinSphereVertexCount ... kMaxSphereVertexCount
   double nucleus_radius_m = 0.0;       // > 0: concentric nucleus region (tets marked Region::kNucleus)
   double max_radius_edge_ratio = 1.5;  // TetGen quality bound (-q); 1.1 ... 10
   double min_dihedral_deg = 10.0;      // TetGen quality bound (-q/..); 0 ... 18

@@ -17,13 +17,18 @@
 
 namespace cellflow::units {
 
+// Water at room temperature, the paper's suspending fluid (section 7.1):
+// the default of every flow scene.
+inline constexpr double kWaterDensityKgM3 = 1e3;
+inline constexpr double kWaterViscosityPaS = 1e-3;
+
 // What fixes the conversion (field names follow ShearFlowNumerics).
 struct LatticeChoice {
-  double cell_radius_m = 0.0;          // R > 0
-  double cells_per_radius = 6.0;       // R / dx > 0          (numerics.cells_per_radius)
-  double relaxation_time = 1.0;        // tau in (0.5, 3]      (numerics.relaxation_time)
-  double fluid_density_kg_m3 = 1e3;    // rho > 0
-  double fluid_viscosity_pa_s = 1e-3;  // eta > 0 (dynamic)
+  double cell_radius_m = 0.0;                        // R > 0
+  double cells_per_radius = 6.0;                     // R / dx > 0          (numerics.cells_per_radius)
+  double relaxation_time = 1.0;                      // tau in (0.5, 3]      (numerics.relaxation_time)
+  double fluid_density_kg_m3 = kWaterDensityKgM3;    // rho > 0
+  double fluid_viscosity_pa_s = kWaterViscosityPaS;  // eta > 0 (dynamic)
 };
 
 // Stability limits of the lattice (validated against by validate_lattice).

@@ -52,10 +52,13 @@ struct QuasiStaticOptions {
   elastic::VolumetricTerm volumetric = elastic::VolumetricTerm::kNodalAverage;
 };
 
+// Points of a curve after first contact, unless the spec says otherwise.
+inline constexpr int kDefaultLoadPoints = 40;
+
 struct CompressionParams {
   cell::CellParams cell;
-  double max_deformation = 0.5;  // compression / diameter, in (0, 0.9]
-  int load_points = 40;          // points of the curve after first contact, >= 1
+  double max_deformation = 0.5;          // compression / diameter, in (0, 0.9]
+  int load_points = kDefaultLoadPoints;  // points of the curve after first contact, >= 1
   QuasiStaticOptions numerics;
 };
 
@@ -63,7 +66,7 @@ struct IndentationParams {
   cell::CellParams cell;
   double probe_radius_m = 0.0;     // > 0
   double max_indentation_m = 0.0;  // total approach after first contact, in (0, 0.9 * 2 R)
-  int load_points = 40;
+  int load_points = kDefaultLoadPoints;
   QuasiStaticOptions numerics;
 };
 

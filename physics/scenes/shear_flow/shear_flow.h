@@ -56,7 +56,7 @@ namespace cellflow::scenes {
 // cells per radius, 1000 vertices (h = 0.21 R) give +26 %, 3000 (h = 0.14 R)
 // +20 %, for 30 % more time per step. The bulk stiffness couples the mesh
 // term: at nu = 0.3 the mesh dependence is three times weaker.
-inline constexpr int kFlowDefaultVertexCount = 3000;
+inline constexpr int kFlowDefaultVertexCount = mesh::kDefaultSphereVertexCount;
 inline cell::CellParams flow_cell_defaults() {
   cell::CellParams cell;
   cell.target_vertex_count = kFlowDefaultVertexCount;
@@ -114,8 +114,8 @@ struct ShearFlowNumerics {
 
 struct ShearFlowParams {
   cell::CellParams cell = flow_cell_defaults();
-  double fluid_density_kg_m3 = 1e3;    // rho > 0
-  double fluid_viscosity_pa_s = 1e-3;  // eta > 0
+  double fluid_density_kg_m3 = units::kWaterDensityKgM3;    // rho > 0
+  double fluid_viscosity_pa_s = units::kWaterViscosityPaS;  // eta > 0
   // Exactly one of the two drives the flow: the shear rate, or the capillary
   // number Ca = eta gammadot / mu (paper eq. 17), mu the shear modulus of the
   // cell material (mu1 + mu2), which then fixes gammadot.

@@ -56,9 +56,9 @@ Violations check(const Material& material) {
   if (!(nu > -1.0 && nu < 0.5)) {
     violations.add_value("poisson_ratio", nu, "lie in (-1, 0.5)");
   } else if (!(nu >= kMinPoissonRatio && nu <= kMaxPoissonRatio)) {
-    violations.add_value("poisson_ratio", nu,
-                         range_text(kMinPoissonRatio, kMaxPoissonRatio) +
-                             " (kappa / mu within 2e-4 ... 3e4)");
+    violations.add_value(
+        "poisson_ratio", nu,
+        range_text(kMinPoissonRatio, kMaxPoissonRatio) + " (kappa / mu within 2e-4 ... 3e4)");
   }
   const double w = material.mooney_rivlin_w;
   if (!(w >= 0.0 && w <= 1.0)) violations.add_value("mooney_rivlin_w", w, "lie in [0, 1]");

@@ -105,8 +105,9 @@ Status check_memory(std::size_t bytes, double limit_bytes, std::string_view pref
   return Status(StatusCode::kResourceExhausted,
                 "fluid lattice needs " + number_text(static_cast<double>(bytes), 4) + " bytes, above " +
                     field(prefix, "memory_limit_bytes") + " = " + number_text(limit_bytes, 4) +
-                    (limit == limit_bytes ? std::string() : " (capped at " + number_text(limit, 4) + ")") + ": lower " +
-                    field(prefix, "cells_per_radius") + " (memory scales as its cube) or shrink the box");
+                    (limit == limit_bytes ? std::string() : " (capped at " + number_text(limit, 4) + ")") +
+                    ": lower " + field(prefix, "cells_per_radius") +
+                    " (memory scales as its cube) or shrink the box");
 }
 
 }  // namespace cellflow::units

@@ -33,6 +33,7 @@
 #include <string>
 #include <vector>
 
+#include "jobs/common/result_file.h"
 #include "jobs/job_spec.h"
 #include "jobs/registry.h"
 #include "physics/mesh/sphere_mesh.h"
@@ -84,8 +85,7 @@ struct MeshPool {
   std::vector<std::string> files;
 
   MeshPool() {
-    dir = std::filesystem::temp_directory_path() /
-          ("cellflow_spec_fuzz_" + std::to_string(::getpid()));
+    dir = std::filesystem::temp_directory_path() / ("cellflow_spec_fuzz_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
     mesh::SphereMeshOptions o;
     o.radius_m = 8e-6;
@@ -109,8 +109,8 @@ struct MeshPool {
       } else if (kind == 1) {  // truncated
         t.resize(rng() % t.size());
       } else if (kind == 2) {  // a number replaced by a hostile one
-        static const char* kHostile[] = {"1e300", "-1e300", "nan", "inf", "5e-324", "-0", "99999999999",
-                                         "-2147483648", "2147483647", "0"};
+        static const char* kHostile[] = {"1e300", "-1e300",      "nan",         "inf",        "5e-324",
+                                         "-0",    "99999999999", "-2147483648", "2147483647", "0"};
         for (int k = 0; k < 3; ++k) {
           std::size_t at = rng() % t.size();
           while (at < t.size() && !std::isdigit(static_cast<unsigned char>(t[at]))) ++at;
@@ -158,8 +158,9 @@ struct MeshPool {
 // One spec's random choices.
 class Gen {
  public:
-  Gen(long long seed, long long index) : rng_(static_cast<std::uint64_t>(seed) * 0x9E3779B97F4A7C15ull ^
-                                             static_cast<std::uint64_t>(index) * 0xBF58476D1CE4E5B9ull) {
+  Gen(long long seed, long long index)
+      : rng_(static_cast<std::uint64_t>(seed) * 0x9E3779B97F4A7C15ull ^
+             static_cast<std::uint64_t>(index) * 0xBF58476D1CE4E5B9ull) {
     // Per spec: how hostile its fields are (mostly valid specs reach the runs).
     static const double kRates[] = {0.0, 0.03, 0.1, 0.4};
     hostile_ = kRates[rng_() % 4];
@@ -171,8 +172,20 @@ class Gen {
 
   // A hostile double.
   double special() {
-    static const double kSpecial[] = {0.0, -0.0, 5e-324, -5e-324, 1e-300, 1e300, -1e300, kNaN, kInf, -kInf,
-                                      -1.0, 1.0, 2.2250738585072014e-308, 1.7976931348623157e308};
+    static const double kSpecial[] = {0.0,
+                                      -0.0,
+                                      5e-324,
+                                      -5e-324,
+                                      1e-300,
+                                      1e300,
+                                      -1e300,
+                                      kNaN,
+                                      kInf,
+                                      -kInf,
+                                      -1.0,
+                                      1.0,
+                                      2.2250738585072014e-308,
+                                      1.7976931348623157e308};
     if (chance(0.3)) {  // log-uniform over 1e-40 .. 1e40 with either sign
       const double v = std::pow(10.0, -40.0 + 80.0 * uniform());
       return chance(0.8) ? v : -v;
@@ -344,11 +357,13 @@ bool cheap(const v1::JobSpec& spec) {
   switch (spec.scene_case()) {
     case v1::JobSpec::kCompression: {
       const auto& s = spec.compression();
-      return small_cell(s.cell()) && s.has_load_points() && s.load_points() <= 5 && small_numerics(s.numerics());
+      return small_cell(s.cell()) && s.has_load_points() && s.load_points() <= 5 &&
+             small_numerics(s.numerics());
     }
     case v1::JobSpec::kIndentation: {
       const auto& s = spec.indentation();
-      return small_cell(s.cell()) && s.has_load_points() && s.load_points() <= 5 && small_numerics(s.numerics());
+      return small_cell(s.cell()) && s.has_load_points() && s.load_points() <= 5 &&
+             small_numerics(s.numerics());
     }
     case v1::JobSpec::kShearFlow: {
       const auto& s = spec.shear_flow();
@@ -466,7 +481,8 @@ TEST(SpecFuzz, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField) {
       if (!code_ok || field.empty()) {
         ++failures;
         ADD_FAILURE() << "spec " << i << " (" << status_code_name(s.code()) << ") refused without naming a "
-                      << prefix << " field: " << s.message() << "\n" << spec.DebugString();
+                      << prefix << " field: " << s.message() << "\n"
+                      << spec.DebugString();
       }
       if (failures > 20) break;
       continue;
@@ -490,7 +506,8 @@ TEST(SpecFuzz, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField) {
     if (r.signal != 0 || r.timed_out || r.code < 0) {
       outcomes[r.timed_out ? "timed out" : r.signal != 0 ? "crashed" : "no outcome"]++;
       ADD_FAILURE() << "spec " << i << ": the run " << (r.timed_out ? "timed out" : "crashed") << " (signal "
-                    << r.signal << ")\n" << spec.DebugString();
+                    << r.signal << ")\n"
+                    << spec.DebugString();
       continue;
     }
     const auto code = static_cast<StatusCode>(r.code);
@@ -502,24 +519,26 @@ TEST(SpecFuzz, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField) {
     // The estimate includes a process baseline: the child's peak beyond the
     // parent's resident set at the fork stays within it.
     EXPECT_LE(static_cast<double>(r.peak_rss_bytes - parent_rss), bytes)
-        << "spec " << i << ": peak RSS " << r.peak_rss_bytes << " bytes, " << parent_rss
-        << " at the start\n" << spec.DebugString();
+        << "spec " << i << ": peak RSS " << r.peak_rss_bytes << " bytes, " << parent_rss << " at the start\n"
+        << spec.DebugString();
     if (code != StatusCode::kOk) {
       EXPECT_FALSE(r.message.empty()) << "spec " << i;
       EXPECT_TRUE(code == StatusCode::kNumericalFailure || code == StatusCode::kInvalidArgument ||
                   code == StatusCode::kResourceExhausted || code == StatusCode::kFailedPrecondition)
-          << "spec " << i << ": " << status_code_name(code) << ": " << r.message << "\n" << spec.DebugString();
+          << "spec " << i << ": " << status_code_name(code) << ": " << r.message << "\n"
+          << spec.DebugString();
       if (code == StatusCode::kInvalidArgument || code == StatusCode::kResourceExhausted) {
-        EXPECT_FALSE(named_field(r.message, prefix).empty())
-            << "spec " << i << ": " << r.message << "\n" << spec.DebugString();
+        EXPECT_FALSE(named_field(r.message, prefix).empty()) << "spec " << i << ": " << r.message << "\n"
+                                                             << spec.DebugString();
       }
     }
   }
   g_index = -1;
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("spec fuzz: seed %lld, specs %lld (from %lld), refused %lld, accepted %lld, run %lld; "
-              "%.1f s (runs %.1f s)\n",
-              g_seed, count, first, refused, accepted, runs, seconds, run_seconds);
+  std::printf(
+      "spec fuzz: seed %lld, specs %lld (from %lld), refused %lld, accepted %lld, run %lld; "
+      "%.1f s (runs %.1f s)\n",
+      g_seed, count, first, refused, accepted, runs, seconds, run_seconds);
   std::printf("accepted by scene:");
   for (const auto& [k, v] : accepted_by_scene) std::printf(" %s %lld", k.c_str(), v);
   std::printf("\nrun outcomes:");
@@ -529,6 +548,208 @@ TEST(SpecFuzz, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField) {
   std::printf("refused by field:\n");
   for (const auto& [k, v] : refused_by_field) std::printf("  %-60s %lld\n", k.c_str(), v);
   std::fflush(stdout);
+}
+
+}  // namespace
+}  // namespace cellflow::jobs
+
+namespace cellflow::jobs {
+namespace {
+
+// Regression cases: values the ranges of issue 13 item 5 refuse (accepted
+// before; some reached undefined double -> int64 conversions or an infinite
+// contact stiffness), each naming its field.
+struct Hostile {
+  const char* what;
+  void (*spoil)(v1::JobSpec&);
+  const char* field;
+};
+
+v1::JobSpec valid_spec(int scene) {
+  v1::JobSpec spec;
+  v1::CellSpec* cell = scene == 0   ? spec.mutable_compression()->mutable_cell()
+                       : scene == 1 ? spec.mutable_indentation()->mutable_cell()
+                                    : spec.mutable_shear_flow()->mutable_cell();
+  cell->set_radius_m(8e-6);
+  cell->mutable_material()->set_youngs_modulus_pa(150.0);
+  cell->set_target_vertex_count(300);
+  if (scene == 0) spec.mutable_compression()->set_max_deformation(0.2);
+  if (scene == 1) {
+    spec.mutable_indentation()->set_probe_radius_m(8e-6);
+    spec.mutable_indentation()->set_max_indentation_m(2e-6);
+  }
+  if (scene == 2) {
+    spec.mutable_shear_flow()->set_capillary_number(0.05);
+    spec.mutable_shear_flow()->mutable_numerics()->set_cells_per_radius(4.0);
+  }
+  return spec;
+}
+
+const Hostile kHostile[] = {
+    {"E 1e300",
+     [](v1::JobSpec& s) {
+       s.mutable_compression()->mutable_cell()->mutable_material()->set_youngs_modulus_pa(1e300);
+     },
+     "compression.cell.material.youngs_modulus_pa"},
+    {"E 1e-300",
+     [](v1::JobSpec& s) {
+       s.mutable_compression()->mutable_cell()->mutable_material()->set_youngs_modulus_pa(1e-300);
+     },
+     "compression.cell.material.youngs_modulus_pa"},
+    {"nu 0.5 - 1 ulp",
+     [](v1::JobSpec& s) {
+       s.mutable_compression()->mutable_cell()->mutable_material()->set_poisson_ratio(0.49999999999999994);
+     },
+     "compression.cell.material.poisson_ratio"},
+    {"nu -1 + 1e-12",
+     [](v1::JobSpec& s) {
+       s.mutable_compression()->mutable_cell()->mutable_material()->set_poisson_ratio(-1.0 + 1e-12);
+     },
+     "compression.cell.material.poisson_ratio"},
+    {"nucleus 1e-300",
+     [](v1::JobSpec& s) {
+       auto* n = s.mutable_compression()->mutable_cell()->mutable_nucleus();
+       n->set_radius_m(1e-300);
+       n->mutable_material()->set_youngs_modulus_pa(150.0);
+     },
+     "compression.cell.nucleus.radius_m"},
+    {"max_deformation 5e-324", [](v1::JobSpec& s) { s.mutable_compression()->set_max_deformation(5e-324); },
+     "compression.max_deformation"},
+    {"load_points 100000", [](v1::JobSpec& s) { s.mutable_compression()->set_load_points(100000); },
+     "compression.load_points"},
+    {"load_points x vertices",
+     [](v1::JobSpec& s) {
+       s.mutable_compression()->set_load_points(5000);
+       s.mutable_compression()->mutable_cell()->set_target_vertex_count(20000);
+     },
+     "compression.load_points"},
+    {"contact range 1e-300 (stiffness k r / r = inf)",
+     [](v1::JobSpec& s) { s.mutable_compression()->mutable_numerics()->set_contact_range_m(1e-300); },
+     "compression.numerics.contact_range_m"},
+    {"contact stiffness 1e300",
+     [](v1::JobSpec& s) {
+       s.mutable_compression()->mutable_numerics()->set_contact_stiffness_n_per_m(1e300);
+     },
+     "compression.numerics.contact_stiffness_n_per_m"},
+    {"contact stiffness 5e-324",
+     [](v1::JobSpec& s) {
+       s.mutable_compression()->mutable_numerics()->set_contact_stiffness_n_per_m(5e-324);
+     },
+     "compression.numerics.contact_stiffness_n_per_m"},
+    {"probe 1e300", [](v1::JobSpec& s) { s.mutable_indentation()->set_probe_radius_m(1e300); },
+     "indentation.probe_radius_m"},
+    {"probe 1e-8 m (below 0.01 R)", [](v1::JobSpec& s) { s.mutable_indentation()->set_probe_radius_m(1e-8); },
+     "indentation.probe_radius_m"},
+    {"indentation 1e-300", [](v1::JobSpec& s) { s.mutable_indentation()->set_max_indentation_m(1e-300); },
+     "indentation.max_indentation_m"},
+    {"density 1e-300", [](v1::JobSpec& s) { s.mutable_shear_flow()->set_fluid_density_kg_m3(1e-300); },
+     "shear_flow.fluid_density_kg_m3"},
+    {"viscosity 1e300", [](v1::JobSpec& s) { s.mutable_shear_flow()->set_fluid_viscosity_pa_s(1e300); },
+     "shear_flow.fluid_viscosity_pa_s"},
+    {"shear rate 5e-324 (steps per strain = inf)",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->set_shear_rate_per_s(5e-324); },
+     "shear_flow.shear_rate_per_s"},
+    {"shear rate 1e7 /s giving Ca 197",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->set_shear_rate_per_s(1e7); },
+     "shear_flow.shear_rate_per_s"},
+    {"Ca 1e300", [](v1::JobSpec& s) { s.mutable_shear_flow()->set_capillary_number(1e300); },
+     "shear_flow.capillary_number"},
+    {"tau 0.5 + 1e-15",
+     [](v1::JobSpec& s) {
+       s.mutable_shear_flow()->mutable_numerics()->set_relaxation_time(0.500000000000001);
+     },
+     "shear_flow.numerics.relaxation_time"},
+    {"max_mach 5e-324",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->mutable_numerics()->set_max_mach(5e-324); },
+     "shear_flow.numerics.max_mach"},
+    {"max_time_s 1e300",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->mutable_numerics()->set_max_time_s(1e300); },
+     "shear_flow.numerics.max_time_s"},
+    {"sample_every_strain 5e-324",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->mutable_numerics()->set_sample_every_strain(5e-324); },
+     "shear_flow.numerics.sample_every_strain"},
+    {"1e6 samples",
+     [](v1::JobSpec& s) {
+       s.mutable_shear_flow()->mutable_numerics()->set_sample_every_strain(1e-3);
+       s.mutable_shear_flow()->mutable_numerics()->set_max_strain(1e3);
+     },
+     "shear_flow.numerics.sample_every_strain"},
+    {"snapshot_every_strain 5e-324",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->mutable_numerics()->set_snapshot_every_strain(5e-324); },
+     "shear_flow.numerics.snapshot_every_strain"},
+    {"steady window 1e300",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->mutable_numerics()->set_steady_window_strain(1e300); },
+     "shear_flow.numerics.steady_window_strain"},
+    {"memory limit 1e300",
+     [](v1::JobSpec& s) { s.mutable_shear_flow()->mutable_numerics()->set_memory_limit_bytes(1e300); },
+     "shear_flow.numerics.memory_limit_bytes"},
+    {"no memory limit, 64 cells per radius in a 1000-radii box",
+     [](v1::JobSpec& s) {
+       auto* n = s.mutable_shear_flow()->mutable_numerics();
+       n->set_memory_limit_bytes(0.0);
+       n->set_cells_per_radius(64.0);
+       n->set_box_x_radii(1000.0);
+       n->set_target_reynolds_number(0.01);
+     },
+     "shear_flow.numerics.memory_limit_bytes"},
+    {"physical density in water: days of lattice work",
+     [](v1::JobSpec& s) {
+       s.mutable_shear_flow()->mutable_numerics()->set_target_reynolds_number(0.0);
+       s.mutable_shear_flow()->mutable_numerics()->set_cells_per_radius(6.0);
+       s.mutable_shear_flow()->mutable_cell()->mutable_material()->set_youngs_modulus_pa(1.0);  // Re_p 1e-3
+       s.mutable_shear_flow()->mutable_numerics()->set_max_strain(400.0);
+       s.mutable_shear_flow()->mutable_numerics()->set_snapshot_every_strain(0.0);
+     },
+     "shear_flow.numerics.max_strain"},
+};
+
+TEST(SpecFuzzRegression, HostileValuesAreRefusedNamingTheirField) {
+  const SceneRegistry registry;
+  for (int scene = 0; scene < 3; ++scene) {
+    const v1::JobSpec base = valid_spec(scene);
+    ASSERT_TRUE(registry.prepare(base).ok()) << registry.prepare(base).status().to_string();
+  }
+  for (const Hostile& h : kHostile) {
+    const std::string field = h.field;
+    v1::JobSpec spec = valid_spec(field.starts_with("compression")   ? 0
+                                  : field.starts_with("indentation") ? 1
+                                                                     : 2);
+    h.spoil(spec);
+    const StatusOr<std::unique_ptr<PreparedJob>> job = registry.prepare(spec);
+    ASSERT_FALSE(job.ok()) << h.what;
+    EXPECT_TRUE(job.status().code() == StatusCode::kInvalidArgument ||
+                job.status().code() == StatusCode::kResourceExhausted)
+        << h.what << ": " << job.status().to_string();
+    EXPECT_NE(job.status().message().find(field), std::string::npos)
+        << h.what << ": " << job.status().message();
+  }
+}
+
+// Found by the fuzzer (seed 1, spec 1512): a long, thin lattice run to zero
+// steps peaked 60 MB above its estimate: the start profile's two per-node
+// doubles were still held while the velocity-field update took three more.
+TEST(SpecFuzzRegression, ShearFlowStartStaysWithinTheMemoryEstimate) {
+  v1::JobSpec spec = valid_spec(2);
+  auto* n = spec.mutable_shear_flow()->mutable_numerics();
+  n->set_cells_per_radius(6.0);
+  n->set_box_x_radii(5.0);
+  n->set_box_y_radii(5.0);
+  n->set_box_z_radii(500.0);  // 30 x 30 x 3000 nodes
+  n->set_max_strain(1e-300);  // no time step: the start is the peak
+  n->set_snapshot_every_strain(0.0);
+  const SceneRegistry registry;
+  StatusOr<std::unique_ptr<PreparedJob>> job = registry.prepare(spec);
+  ASSERT_TRUE(job.ok()) << job.status().to_string();
+  const long parent_rss = rss_bytes();
+  const ChildRun r = run_in_child(**job, kMaxRunSeconds);
+  ASSERT_EQ(r.signal, 0);
+  ASSERT_FALSE(r.timed_out);
+  EXPECT_EQ(r.code, static_cast<int>(StatusCode::kOk)) << r.message;
+  // Without the process baseline (the child shares the parent's pages), with
+  // 32 MB for the allocator and the mesh: the old order overran by 65 MB.
+  const double estimate = static_cast<double>((*job)->memory_bytes() - kBaselineBytes);
+  EXPECT_LE(static_cast<double>(r.peak_rss_bytes - parent_rss), estimate + (32 << 20))
+      << "peak " << r.peak_rss_bytes << ", parent " << parent_rss << ", estimate " << estimate;
 }
 
 }  // namespace

@@ -100,11 +100,12 @@ Violations check_numerics(const QuasiStaticOptions& n, const cell::CellParams& c
   } else if (n.contact_stiffness_n_per_m &&
              !(*n.contact_stiffness_n_per_m >= kMinContactStiffnessER * force_per_length &&
                *n.contact_stiffness_n_per_m <= kMaxContactStiffnessER * force_per_length)) {
-    v.add_value("contact_stiffness_n_per_m", *n.contact_stiffness_n_per_m,
-                "lie in [" + number_text(kMinContactStiffnessER) + ", " +
-                    number_text(kMaxContactStiffnessER) + "] E R = " +
-                    interval(kMinContactStiffnessER * force_per_length, kMaxContactStiffnessER * force_per_length) +
-                    " (E = cell.material.youngs_modulus_pa, R = cell.radius_m; or unset for the default)");
+    v.add_value(
+        "contact_stiffness_n_per_m", *n.contact_stiffness_n_per_m,
+        "lie in [" + number_text(kMinContactStiffnessER) + ", " + number_text(kMaxContactStiffnessER) +
+            "] E R = " +
+            interval(kMinContactStiffnessER * force_per_length, kMaxContactStiffnessER * force_per_length) +
+            " (E = cell.material.youngs_modulus_pa, R = cell.radius_m; or unset for the default)");
   }
   if (n.contact_range_m &&
       !(*n.contact_range_m > 0.0 && *n.contact_range_m <= kMaxContactRangeRadii * radius_m)) {
@@ -112,10 +113,11 @@ Violations check_numerics(const QuasiStaticOptions& n, const cell::CellParams& c
                 "lie in (0, " + number_text(kMaxContactRangeRadii) + " radius_m] = (0, " +
                     number_text(kMaxContactRangeRadii * radius_m) + "] (or unset for the default)");
   } else if (n.contact_range_m && !(*n.contact_range_m >= kMinContactRangeRadii * radius_m)) {
-    v.add_value("contact_range_m", *n.contact_range_m,
-                "lie in [" + number_text(kMinContactRangeRadii) + " radius_m, " +
-                    number_text(kMaxContactRangeRadii) + " radius_m] = " +
-                    real_range(kMinContactRangeRadii * radius_m, kMaxContactRangeRadii * radius_m) + " (or unset for the default)");
+    v.add_value(
+        "contact_range_m", *n.contact_range_m,
+        "lie in [" + number_text(kMinContactRangeRadii) + " radius_m, " + number_text(kMaxContactRangeRadii) +
+            " radius_m] = " + real_range(kMinContactRangeRadii * radius_m, kMaxContactRangeRadii * radius_m) +
+            " (or unset for the default)");
   }
   if (n.threads < 0 || n.threads > kMaxThreads) {
     v.add("threads", "= " + std::to_string(n.threads) + " must " + int_range(0, kMaxThreads));
@@ -130,18 +132,19 @@ void check_load_points(int load_points, const cell::CellParams& cell, Violations
   }
   // The mesh's size is known here for a generated sphere; a mesh file's
   // vertices are counted when it is read (run_load_points).
-  if (cell.mesh_file.empty() && static_cast<double>(load_points) * cell.target_vertex_count > kMaxLoadPointVertices) {
-    v.add("load_points", "= " + std::to_string(load_points) + " with cell.target_vertex_count = " +
-                             std::to_string(cell.target_vertex_count) +
-                             " must keep load_points x vertices at most " + number_text(kMaxLoadPointVertices) +
-                             " (the run's cost)");
+  if (cell.mesh_file.empty() &&
+      static_cast<double>(load_points) * cell.target_vertex_count > kMaxLoadPointVertices) {
+    v.add("load_points", "= " + std::to_string(load_points) +
+                             " with cell.target_vertex_count = " + std::to_string(cell.target_vertex_count) +
+                             " must keep load_points x vertices at most " +
+                             number_text(kMaxLoadPointVertices) + " (the run's cost)");
   }
 }
 
 Status check_load_point_vertices(int load_points, std::size_t vertices, std::string_view prefix) {
   if (static_cast<double>(load_points) * static_cast<double>(vertices) <= kMaxLoadPointVertices) return {};
-  return invalid_argument(std::string(prefix) + "load_points = " + std::to_string(load_points) + " with the " +
-                          std::to_string(vertices) + " vertices of " + std::string(prefix) +
+  return invalid_argument(std::string(prefix) + "load_points = " + std::to_string(load_points) +
+                          " with the " + std::to_string(vertices) + " vertices of " + std::string(prefix) +
                           "cell.mesh_file must keep load_points x vertices at most " +
                           number_text(kMaxLoadPointVertices) + " (the run's cost)");
 }
@@ -162,7 +165,8 @@ StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& 
   StatusOr<cell::CellBody> built = cell::build_cell_body(
       cell, numerics.volumetric, std::string(prefix) + "cell.", cell::Centring::kBoundingBox);
   if (!built.ok()) return built.status();
-  if (Status s = check_load_point_vertices(load_points, built->mesh.num_vertices(), prefix); !s.ok()) return s;
+  if (Status s = check_load_point_vertices(load_points, built->mesh.num_vertices(), prefix); !s.ok())
+    return s;
   setup.mesh = std::move(built->mesh);
   setup.body = std::move(built->body);
   mesh::TetMesh& m = setup.mesh;
@@ -312,8 +316,8 @@ Violations violations(const IndentationParams& params) {
   } else if (!(params.max_indentation_m >= min_travel)) {
     v.add_value("max_indentation_m", params.max_indentation_m,
                 "lie in [" + number_text(2.0 * kMinDeformation) + " cell.radius_m, " +
-                    number_text(kMaxIndentationRadii) + " cell.radius_m) = [" + number_text(min_travel) + ", " +
-                    number_text(max_travel) + ")");
+                    number_text(kMaxIndentationRadii) + " cell.radius_m) = [" + number_text(min_travel) +
+                    ", " + number_text(max_travel) + ")");
   }
   check_load_points(params.load_points, params.cell, v);
   v.add_all(check_numerics(params.numerics, params.cell), "numerics.");

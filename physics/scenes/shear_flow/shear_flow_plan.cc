@@ -284,7 +284,8 @@ Violations violations(const ShearFlowParams& params) {
     v.add("numerics.max_time_s",
           "= " + number_text(n.max_time_s, 6) + " must be >= 0 (0: no limit) and finite");
   } else if (!(n.max_time_s <= kMaxTimeS)) {
-    v.add_value("numerics.max_time_s", n.max_time_s, "lie in [0, " + number_text(kMaxTimeS) + "] s (0: no limit)");
+    v.add_value("numerics.max_time_s", n.max_time_s,
+                "lie in [0, " + number_text(kMaxTimeS) + "] s (0: no limit)");
   }
   if (!(n.snapshot_every_strain >= 0.0 && std::isfinite(n.snapshot_every_strain))) {
     v.add("numerics.snapshot_every_strain",

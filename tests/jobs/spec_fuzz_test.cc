@@ -41,6 +41,10 @@
 #ifndef CELLFLOW_FUZZ_DEFAULT_SPECS
 #define CELLFLOW_FUZZ_DEFAULT_SPECS 20000
 #endif
+// The long registration has its own test names (ctest names must differ).
+#ifndef CELLFLOW_FUZZ_SUITE
+#define CELLFLOW_FUZZ_SUITE SpecFuzz
+#endif
 #ifndef CELLFLOW_FUZZ_DEFAULT_RUNS
 #define CELLFLOW_FUZZ_DEFAULT_RUNS 24
 #endif
@@ -450,7 +454,7 @@ ChildRun run_in_child(PreparedJob& job, double timeout_s) {
   return r;
 }
 
-TEST(SpecFuzz, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField) {
+TEST(CELLFLOW_FUZZ_SUITE, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField) {
   g_seed = env_or("CELLFLOW_FUZZ_SEED", 1);
   const long long count = env_or("CELLFLOW_FUZZ_SPECS", CELLFLOW_FUZZ_DEFAULT_SPECS);
   const long long first = env_or("CELLFLOW_FUZZ_FIRST", 0);
@@ -553,6 +557,7 @@ TEST(SpecFuzz, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField) {
 }  // namespace
 }  // namespace cellflow::jobs
 
+#ifndef CELLFLOW_FUZZ_LONG
 namespace cellflow::jobs {
 namespace {
 
@@ -754,3 +759,4 @@ TEST(SpecFuzzRegression, ShearFlowStartStaysWithinTheMemoryEstimate) {
 
 }  // namespace
 }  // namespace cellflow::jobs
+#endif  // CELLFLOW_FUZZ_LONG

@@ -155,14 +155,14 @@ class ShearFlowJob final : public PreparedJob {
   // The baseline, the D3Q19 lattice as physics/lb allocates it (in-place AA
   // streaming: ONE population array of 19 values per node, plus the force and
   // velocity fields, 3 values each, in the storage precision;
-  // setup.lattice_bytes), the larger of the transient per-node buffers in
-  // double (the Couette start profile, 2 values; the fluid velocity
-  // snapshots, 3 values, when numerics.fluid_snapshots is set), and the cell
-  // mesh at the quasi-static rate per vertex.
+  // setup.lattice_bytes), the largest of the transient per-node buffers in
+  // double (the Couette start profile, 2 values; the velocity field update
+  // after it and the fluid velocity snapshots, 3 values each, one at a
+  // time), and the cell mesh at the quasi-static rate per vertex.
   std::int64_t memory_bytes() const override {
     const scenes::ShearFlowSetup& setup = planned_.setup();
     const double nodes = static_cast<double>(setup.nx) * setup.ny * setup.nz;
-    const double transient_values = planned_.params().numerics.fluid_snapshots ? 3.0 : 2.0;
+    const double transient_values = 3.0;
     const double bytes = static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18)) +
            cell_vertex_bound(planned_.params().cell) * kBytesPerVertex;

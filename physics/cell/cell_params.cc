@@ -16,6 +16,11 @@ namespace {
 // read in metres, and a unit-sphere file with R = 8.6e-6 would otherwise give
 // a 1 m cell without a word.
 constexpr double kMeshRadiusMismatch = 1.25;
+// A nucleus is a body inside the cell: from a hundredth of its radius (below
+// that no mesh of kMaxSphereVertexCount vertices resolves it) to 0.99 of it
+// (a thinner shell cannot hold one layer of tetrahedra).
+constexpr double kMinNucleusRadii = 0.01;
+constexpr double kMaxNucleusRadii = 0.99;
 
 }  // namespace
 
@@ -35,6 +40,12 @@ Violations check(const CellParams& cell) {
     if (!(rn > 0.0 && rn < cell.radius_m)) {
       violations.add_value("nucleus.radius_m", rn,
                            "lie in (0, radius_m) = (0, " + number_text(cell.radius_m) + ")");
+    } else if (!(rn >= kMinNucleusRadii * cell.radius_m && rn <= kMaxNucleusRadii * cell.radius_m)) {
+      violations.add_value("nucleus.radius_m", rn,
+                           "lie in [" + number_text(kMinNucleusRadii) + " radius_m, " +
+                               number_text(kMaxNucleusRadii) + " radius_m] = [" +
+                               number_text(kMinNucleusRadii * cell.radius_m) + ", " +
+                               number_text(kMaxNucleusRadii * cell.radius_m) + "]");
     }
     violations.add_all(elastic::check(cell.nucleus->material), "nucleus.material.");
   }

@@ -1,5 +1,6 @@
 #include "physics/units/units.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -98,11 +99,15 @@ std::size_t estimate_lattice_bytes(int nx, int ny, int nz, bool single_precision
 }
 
 Status check_memory(std::size_t bytes, double limit_bytes, std::string_view prefix) {
-  if (limit_bytes <= 0.0 || static_cast<double>(bytes) <= limit_bytes) return Status::ok_status();
+  // NaN or <= 0: the cap alone
+  const double limit = limit_bytes > 0.0 ? std::min(limit_bytes, kMaxLatticeBytes) : kMaxLatticeBytes;
+  if (static_cast<double>(bytes) <= limit) return Status::ok_status();
   return Status(StatusCode::kResourceExhausted,
                 "fluid lattice needs " + number_text(static_cast<double>(bytes), 4) + " bytes, above " +
-                    field(prefix, "memory_limit_bytes") + " = " + number_text(limit_bytes, 4) + ": lower " +
-                    field(prefix, "cells_per_radius") + " (memory scales as its cube) or shrink the box");
+                    field(prefix, "memory_limit_bytes") + " = " + number_text(limit_bytes, 4) +
+                    (limit == limit_bytes ? std::string() : " (capped at " + number_text(limit, 4) + ")") +
+                    ": lower " + field(prefix, "cells_per_radius") +
+                    " (memory scales as its cube) or shrink the box");
 }
 
 }  // namespace cellflow::units

@@ -102,8 +102,14 @@ int nodes_along(const Units& units, double length_m);
 // physics/lb allocates).
 std::size_t estimate_lattice_bytes(int nx, int ny, int nz, bool single_precision);
 
-// kResourceExhausted if `bytes` exceeds `limit_bytes` (a limit <= 0 means no
-// limit), naming numerics.memory_limit_bytes and numerics.cells_per_radius.
+// The largest lattice any run allocates (1 TiB, beyond the memory of a
+// compute node): the cap when numerics.memory_limit_bytes is <= 0, and the
+// largest limit a spec may set.
+inline constexpr double kMaxLatticeBytes = 1099511627776.0;
+
+// kResourceExhausted if `bytes` exceeds `limit_bytes` (a limit <= 0 means
+// kMaxLatticeBytes; a larger limit is capped at it), naming
+// numerics.memory_limit_bytes and numerics.cells_per_radius.
 Status check_memory(std::size_t bytes, double limit_bytes, std::string_view prefix = "numerics.");
 
 }  // namespace cellflow::units

@@ -21,13 +21,35 @@ namespace {
 constexpr double kMinResidualTolerance = 1e-12, kMaxResidualTolerance = 1e-2;
 constexpr int kMaxNewtonIterations = 1000;
 constexpr int kMaxStepSplits = 30;
-constexpr int kMaxLoadPoints = 100000;
+// Load points: a curve of 10000 points is finer than any measured one, and
+// the cost of a run grows as load points x vertices (each point one Newton
+// solve over the mesh): at most kMaxLoadPointVertices, e.g. 40 points at
+// 20000 vertices or 10000 at 4000, hours on one core, not days.
+constexpr int kMaxLoadPoints = 10000;
+constexpr double kMaxLoadPointVertices = 4e7;
 constexpr int kMaxThreads = 1024;
 // Largest compression / diameter and probe travel / radius a scene runs.
 constexpr double kMaxDeformation = 0.9;
 constexpr double kMaxIndentationRadii = 1.8;
-// A contact range beyond a tenth of the radius would blur the first contact.
+// Smallest compression / diameter (and probe travel / diameter): below 1e-3
+// the travel (2e-3 R) is inside the default contact layer (5e-3 R) and the
+// penetration tolerance (1e-3 R): the curve would measure the penalty.
+constexpr double kMinDeformation = 1e-3;
+// Probe radius: 10 nm (an AFM tip) to 10 cm, and from a hundredth of the
+// cell radius (narrower slips between the surface vertices of any mesh this
+// code makes) to a hundred radii (wider is a plate).
+constexpr double kMinProbeRadiusM = 1e-8, kMaxProbeRadiusM = 1e-1;
+constexpr double kMinProbeRadii = 1e-2, kMaxProbeRadii = 1e2;
+// Contact stiffness against the cell's force per length E R: the default
+// (contact::default_penalty) lies at about 10-400 E R for 200-20000 vertices;
+// a thousandth of that lets the plates pass through the cell, a thousand
+// times more leaves the Newton tangent without the cell's digits.
+constexpr double kMinContactStiffnessER = 1e-2, kMaxContactStiffnessER = 1e5;
+// A contact range beyond a tenth of the radius would blur the first contact;
+// below 1e-5 R every Newton step jumps across it (and a range-only spec
+// scales the stiffness by default range / range: 1e-300 gave k = inf).
 constexpr double kMaxContactRangeRadii = 0.1;
+constexpr double kMinContactRangeRadii = 1e-5;
 // Smallest element volume ratio J a load point may reach. Converged curves to
 // deformation 0.9 reach 0.34-0.49 (nu 0.45-0.499); collapsing ones fall
 // below 0.1 (bench/stability). Below it the point is not trusted.
@@ -45,7 +67,18 @@ std::string int_range(int lo, int hi) {
   return "lie in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
 }
 
-Violations check_numerics(const QuasiStaticOptions& n, double radius_m) {
+// "[lo, hi]" and "lie in [lo, hi]" for a real range.
+std::string interval(double lo, double hi) {
+  return "[" + number_text(lo) + ", " + number_text(hi) + "]";
+}
+std::string real_range(double lo, double hi) {
+  return "lie in " + interval(lo, hi);
+}
+
+Violations check_numerics(const QuasiStaticOptions& n, const cell::CellParams& cell) {
+  const double radius_m = cell.radius_m;
+  // E R: the cell's force per length (the contact stiffness scale)
+  const double force_per_length = cell.material.youngs_modulus_pa * radius_m;
   Violations v;
   if (!(n.residual_tolerance >= kMinResidualTolerance && n.residual_tolerance <= kMaxResidualTolerance)) {
     v.add_value(
@@ -64,12 +97,27 @@ Violations check_numerics(const QuasiStaticOptions& n, double radius_m) {
       !(*n.contact_stiffness_n_per_m > 0.0 && std::isfinite(*n.contact_stiffness_n_per_m))) {
     v.add_value("contact_stiffness_n_per_m", *n.contact_stiffness_n_per_m,
                 "be > 0 and finite (or unset for the derived default)");
+  } else if (n.contact_stiffness_n_per_m &&
+             !(*n.contact_stiffness_n_per_m >= kMinContactStiffnessER * force_per_length &&
+               *n.contact_stiffness_n_per_m <= kMaxContactStiffnessER * force_per_length)) {
+    v.add_value(
+        "contact_stiffness_n_per_m", *n.contact_stiffness_n_per_m,
+        "lie in [" + number_text(kMinContactStiffnessER) + ", " + number_text(kMaxContactStiffnessER) +
+            "] E R = " +
+            interval(kMinContactStiffnessER * force_per_length, kMaxContactStiffnessER * force_per_length) +
+            " (E = cell.material.youngs_modulus_pa, R = cell.radius_m; or unset for the default)");
   }
   if (n.contact_range_m &&
       !(*n.contact_range_m > 0.0 && *n.contact_range_m <= kMaxContactRangeRadii * radius_m)) {
     v.add_value("contact_range_m", *n.contact_range_m,
                 "lie in (0, " + number_text(kMaxContactRangeRadii) + " radius_m] = (0, " +
                     number_text(kMaxContactRangeRadii * radius_m) + "] (or unset for the default)");
+  } else if (n.contact_range_m && !(*n.contact_range_m >= kMinContactRangeRadii * radius_m)) {
+    v.add_value(
+        "contact_range_m", *n.contact_range_m,
+        "lie in [" + number_text(kMinContactRangeRadii) + " radius_m, " + number_text(kMaxContactRangeRadii) +
+            " radius_m] = " + real_range(kMinContactRangeRadii * radius_m, kMaxContactRangeRadii * radius_m) +
+            " (or unset for the default)");
   }
   if (n.threads < 0 || n.threads > kMaxThreads) {
     v.add("threads", "= " + std::to_string(n.threads) + " must " + int_range(0, kMaxThreads));
@@ -77,10 +125,28 @@ Violations check_numerics(const QuasiStaticOptions& n, double radius_m) {
   return v;
 }
 
-void check_load_points(int load_points, Violations& v) {
+void check_load_points(int load_points, const cell::CellParams& cell, Violations& v) {
   if (load_points < 1 || load_points > kMaxLoadPoints) {
     v.add("load_points", "= " + std::to_string(load_points) + " must " + int_range(1, kMaxLoadPoints));
+    return;
   }
+  // The mesh's size is known here for a generated sphere; a mesh file's
+  // vertices are counted when it is read (run_load_points).
+  if (cell.mesh_file.empty() &&
+      static_cast<double>(load_points) * cell.target_vertex_count > kMaxLoadPointVertices) {
+    v.add("load_points", "= " + std::to_string(load_points) +
+                             " with cell.target_vertex_count = " + std::to_string(cell.target_vertex_count) +
+                             " must keep load_points x vertices at most " +
+                             number_text(kMaxLoadPointVertices) + " (the run's cost)");
+  }
+}
+
+Status check_load_point_vertices(int load_points, std::size_t vertices, std::string_view prefix) {
+  if (static_cast<double>(load_points) * static_cast<double>(vertices) <= kMaxLoadPointVertices) return {};
+  return invalid_argument(std::string(prefix) + "load_points = " + std::to_string(load_points) +
+                          " with the " + std::to_string(vertices) + " vertices of " + std::string(prefix) +
+                          "cell.mesh_file must keep load_points x vertices at most " +
+                          number_text(kMaxLoadPointVertices) + " (the run's cost)");
 }
 
 // Everything a quasi-static run sets up before its first load step.
@@ -92,13 +158,15 @@ struct Setup {
   double z_top_m = 0.0, z_bottom_m = 0.0;  // extreme surface vertex heights
 };
 
-StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& numerics,
+StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& numerics, int load_points,
                         std::string_view prefix) {
   Setup setup;
   // The cell mesh with its bounding box centred at the origin, and its body.
   StatusOr<cell::CellBody> built = cell::build_cell_body(
       cell, numerics.volumetric, std::string(prefix) + "cell.", cell::Centring::kBoundingBox);
   if (!built.ok()) return built.status();
+  if (Status s = check_load_point_vertices(load_points, built->mesh.num_vertices(), prefix); !s.ok())
+    return s;
   setup.mesh = std::move(built->mesh);
   setup.body = std::move(built->body);
   mesh::TetMesh& m = setup.mesh;
@@ -217,26 +285,42 @@ Violations violations(const CompressionParams& params) {
   if (!(params.max_deformation > 0.0 && params.max_deformation <= kMaxDeformation)) {
     v.add_value("max_deformation", params.max_deformation,
                 "lie in (0, " + number_text(kMaxDeformation) + "]");
+  } else if (!(params.max_deformation >= kMinDeformation)) {
+    v.add_value("max_deformation", params.max_deformation, real_range(kMinDeformation, kMaxDeformation));
   }
-  check_load_points(params.load_points, v);
-  v.add_all(check_numerics(params.numerics, params.cell.radius_m), "numerics.");
+  check_load_points(params.load_points, params.cell, v);
+  v.add_all(check_numerics(params.numerics, params.cell), "numerics.");
   return v;
 }
 
 Violations violations(const IndentationParams& params) {
   Violations v;
   v.add_all(cell::check(params.cell), "cell.");
-  if (!(params.probe_radius_m > 0.0 && std::isfinite(params.probe_radius_m))) {
-    v.add_value("probe_radius_m", params.probe_radius_m, "be > 0 and finite");
+  const double radius = params.cell.radius_m;
+  const double rp = params.probe_radius_m;
+  if (!(rp > 0.0 && std::isfinite(rp))) {
+    v.add_value("probe_radius_m", rp, "be > 0 and finite");
+  } else if (!(rp >= kMinProbeRadiusM && rp <= kMaxProbeRadiusM)) {
+    v.add_value("probe_radius_m", rp, real_range(kMinProbeRadiusM, kMaxProbeRadiusM) + " m");
+  } else if (!(rp >= kMinProbeRadii * radius && rp <= kMaxProbeRadii * radius)) {
+    v.add_value("probe_radius_m", rp,
+                "lie in [" + number_text(kMinProbeRadii) + " cell.radius_m, " + number_text(kMaxProbeRadii) +
+                    " cell.radius_m] = " + interval(kMinProbeRadii * radius, kMaxProbeRadii * radius));
   }
-  const double max_travel = kMaxIndentationRadii * params.cell.radius_m;
+  const double max_travel = kMaxIndentationRadii * radius;
+  const double min_travel = kMinDeformation * 2.0 * radius;
   if (!(params.max_indentation_m > 0.0 && params.max_indentation_m < max_travel)) {
     v.add_value("max_indentation_m", params.max_indentation_m,
                 "lie in (0, " + number_text(kMaxIndentationRadii) + " cell.radius_m) = (0, " +
                     number_text(max_travel) + ")");
+  } else if (!(params.max_indentation_m >= min_travel)) {
+    v.add_value("max_indentation_m", params.max_indentation_m,
+                "lie in [" + number_text(2.0 * kMinDeformation) + " cell.radius_m, " +
+                    number_text(kMaxIndentationRadii) + " cell.radius_m) = [" + number_text(min_travel) +
+                    ", " + number_text(max_travel) + ")");
   }
-  check_load_points(params.load_points, v);
-  v.add_all(check_numerics(params.numerics, params.cell.radius_m), "numerics.");
+  check_load_points(params.load_points, params.cell, v);
+  v.add_all(check_numerics(params.numerics, params.cell), "numerics.");
   return v;
 }
 
@@ -273,7 +357,7 @@ QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCa
 QuasiStaticResult run_compression(const Checked<CompressionParams>& checked,
                                   const SceneCallbacks& callbacks) {
   const CompressionParams& params = checked.params();
-  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "compression.");
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "compression.");
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   // Plates start at the zero-force distance (the penalty range) from the
@@ -302,7 +386,7 @@ QuasiStaticResult run_compression(const Checked<CompressionParams>& checked,
 QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
                                   const SceneCallbacks& callbacks) {
   const IndentationParams& params = checked.params();
-  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, "indentation.");
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "indentation.");
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   const double range = setup.penalty.range_m;

@@ -25,6 +25,45 @@ bool positive_finite(double v) {
   return v > 0.0 && std::isfinite(v);
 }
 
+// What the scene can run, each bound declared once here.
+// Fluid: from a light gas to beyond the densest liquid metal (mercury
+// 13.5e3), from below air's viscosity (1.8e-5) to a thick syrup.
+constexpr double kMinFluidDensityKgM3 = 1.0, kMaxFluidDensityKgM3 = 1e5;
+constexpr double kMinFluidViscosityPaS = 1e-6, kMaxFluidViscosityPaS = 1e3;
+// Shear rate: one strain unit in 11 days to one in 0.1 us; the plan's Mach
+// and work checks refuse most of both ends for a given cell.
+constexpr double kMinShearRatePerS = 1e-6, kMaxShearRatePerS = 1e7;
+// Ca = eta gammadot / mu, set or derived: below 1e-6 the deformation
+// (5/4 Ca) is far below the mesh's own D (discretisation floor, ~1e-3), and
+// the stiffness check refuses the cell anyway; above 100 the cell is a
+// thread that no lattice resolves (the kernel warning starts at Ca ~ 1.6).
+constexpr double kMinCapillaryNumber = 1e-6, kMaxCapillaryNumber = 100.0;
+// tau: nu_lb = (tau - 1/2) / 3 > 1/600: below, the collision is at its
+// stability edge and the steps per strain (~ 1 / nu_lb) explode.
+constexpr double kMinRelaxationTime = 0.505;
+// Ma below 1e-3 makes every shear rate a lattice of hundreds of thousands of
+// steps per strain unit: a limit that small refuses every useful run.
+constexpr double kMinMaxMach = 1e-3;
+// Strain and time limits: 1e4 strain units (hundreds of tank-treading turns);
+// max_time_s up to 1e7 s (four months of flow; max_strain ends a run first).
+constexpr double kMaxStrain = 1e4;
+constexpr double kMaxTimeS = 1e7;
+// Samples and snapshots: every 1e-3 strain unit at most often, at most 1e5
+// samples (the result keeps each in memory) and 1000 snapshots per run (each
+// writes the mesh, or with fluid_snapshots the lattice's velocity field).
+constexpr double kMinSampleEveryStrain = 1e-3;
+constexpr double kMaxSamples = 1e5;
+constexpr double kMinSnapshotEveryStrain = 1e-3;
+constexpr double kMaxSnapshots = 1000;
+// Work: lattice node updates (nodes x time steps up to max_strain or
+// max_time_s); 4e12 is about a day on one core (~50 M updates/s) and a
+// few hours on a node. The default flow job needs 1.4e10.
+constexpr double kMaxLatticeNodeSteps = 4e12;
+
+std::string interval(double lo, double hi) {
+  return "[" + number_text(lo) + ", " + number_text(hi) + "]";
+}
+
 // Smallest box (in radii) that holds the cell and the support of its
 // immersed-boundary kernel: periodic directions need the cell and its image
 // apart by one kernel width; the wall direction needs half a kernel width
@@ -58,6 +97,14 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
     setup.capillary_number = eta * params.shear_rate_per_s / setup.shear_modulus_pa;
   }
   const double gammadot = setup.shear_rate_per_s;
+  if (!(setup.capillary_number >= kMinCapillaryNumber && setup.capillary_number <= kMaxCapillaryNumber)) {
+    // only a shear rate gets here: a set Ca was checked by validate()
+    return invalid_argument(prefix + "shear_rate_per_s = " + number_text(params.shear_rate_per_s) +
+                            " gives Ca = eta gammadot / mu = " + number_text(setup.capillary_number, 6) +
+                            " (mu = " + number_text(setup.shear_modulus_pa, 6) + " Pa of " + prefix +
+                            "cell.material), which must lie in " +
+                            interval(kMinCapillaryNumber, kMaxCapillaryNumber));
+  }
   // Re_p = rho gammadot R^2 / eta
   setup.reynolds_number_physical = params.fluid_density_kg_m3 * gammadot * radius * radius / eta;
   setup.simulated_density_kg_m3 = params.fluid_density_kg_m3;
@@ -107,6 +154,21 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
   setup.lattice_bytes = units::estimate_lattice_bytes(setup.nx, setup.ny, setup.nz, n.single_precision);
   if (Status s = units::check_memory(setup.lattice_bytes, n.memory_limit_bytes, numerics_prefix); !s.ok())
     return s;
+  // The run's work: nodes x the steps up to max_strain (or max_time_s).
+  double steps = n.max_strain * setup.steps_per_strain;
+  if (n.max_time_s > 0.0) steps = std::min(steps, u.time_to_lattice(n.max_time_s));
+  const double node_steps = static_cast<double>(setup.nx) * setup.ny * setup.nz * steps;
+  if (!(node_steps <= kMaxLatticeNodeSteps)) {
+    return invalid_argument(
+        numerics_prefix + "max_strain = " + number_text(n.max_strain) + " needs " + number_text(steps, 4) +
+        " time steps (" + number_text(setup.steps_per_strain, 4) + " per strain unit) on " +
+        std::to_string(setup.nx) + " x " + std::to_string(setup.ny) + " x " + std::to_string(setup.nz) +
+        " nodes: " + number_text(node_steps, 4) + " node updates, more than " +
+        number_text(kMaxLatticeNodeSteps) + " (about a day on one core): lower " + numerics_prefix +
+        "max_strain, set " + numerics_prefix + "max_time_s, raise " + numerics_prefix +
+        "target_reynolds_number (now " + number_text(n.target_reynolds_number) + ") or lower " +
+        numerics_prefix + "cells_per_radius (now " + number_text(n.cells_per_radius) + ")");
+  }
   return plan;
 }
 
@@ -120,10 +182,18 @@ Violations violations(const ShearFlowParams& params) {
   if (!positive_finite(params.fluid_density_kg_m3)) {
     v.add("fluid_density_kg_m3",
           "= " + number_text(params.fluid_density_kg_m3, 6) + " must be > 0 and finite");
+  } else if (!(params.fluid_density_kg_m3 >= kMinFluidDensityKgM3 &&
+               params.fluid_density_kg_m3 <= kMaxFluidDensityKgM3)) {
+    v.add_value("fluid_density_kg_m3", params.fluid_density_kg_m3,
+                "lie in " + interval(kMinFluidDensityKgM3, kMaxFluidDensityKgM3) + " kg/m^3");
   }
   if (!positive_finite(params.fluid_viscosity_pa_s)) {
     v.add("fluid_viscosity_pa_s",
           "= " + number_text(params.fluid_viscosity_pa_s, 6) + " must be > 0 and finite");
+  } else if (!(params.fluid_viscosity_pa_s >= kMinFluidViscosityPaS &&
+               params.fluid_viscosity_pa_s <= kMaxFluidViscosityPaS)) {
+    v.add_value("fluid_viscosity_pa_s", params.fluid_viscosity_pa_s,
+                "lie in " + interval(kMinFluidViscosityPaS, kMaxFluidViscosityPaS) + " Pa s");
   }
   const bool has_rate = params.shear_rate_per_s != 0.0;
   const bool has_ca = params.capillary_number != 0.0;
@@ -135,6 +205,14 @@ Violations violations(const ShearFlowParams& params) {
     v.add("shear_rate_per_s", "= " + number_text(params.shear_rate_per_s, 6) + " must be > 0 and finite");
   } else if (has_ca && !positive_finite(params.capillary_number)) {
     v.add("capillary_number", "= " + number_text(params.capillary_number, 6) + " must be > 0 and finite");
+  } else if (has_rate && !(params.shear_rate_per_s >= kMinShearRatePerS &&
+                           params.shear_rate_per_s <= kMaxShearRatePerS)) {
+    v.add_value("shear_rate_per_s", params.shear_rate_per_s,
+                "lie in " + interval(kMinShearRatePerS, kMaxShearRatePerS) + " /s");
+  } else if (has_ca && !(params.capillary_number >= kMinCapillaryNumber &&
+                         params.capillary_number <= kMaxCapillaryNumber)) {
+    v.add_value("capillary_number", params.capillary_number,
+                "lie in " + interval(kMinCapillaryNumber, kMaxCapillaryNumber));
   }
 
   const ShearFlowNumerics& n = params.numerics;
@@ -158,9 +236,13 @@ Violations violations(const ShearFlowParams& params) {
             "the cell diameter 2 plus one kernel width between the cell and its periodic image");
   if (!(n.relaxation_time > 0.5 && n.relaxation_time <= 3.0)) {
     v.add("numerics.relaxation_time", "= " + number_text(n.relaxation_time, 6) + " must lie in (0.5, 3]");
+  } else if (!(n.relaxation_time >= kMinRelaxationTime)) {
+    v.add_value("numerics.relaxation_time", n.relaxation_time, "lie in " + interval(kMinRelaxationTime, 3.0));
   }
   if (!(n.max_mach > 0.0 && n.max_mach <= 0.3)) {
     v.add("numerics.max_mach", "= " + number_text(n.max_mach, 6) + " must lie in (0, 0.3]");
+  } else if (!(n.max_mach >= kMinMaxMach)) {
+    v.add_value("numerics.max_mach", n.max_mach, "lie in " + interval(kMinMaxMach, 0.3));
   }
   if (!(n.target_reynolds_number >= 0.0 && n.target_reynolds_number <= 1.0)) {
     v.add("numerics.target_reynolds_number",
@@ -169,33 +251,63 @@ Violations violations(const ShearFlowParams& params) {
   if (!(n.steady_tolerance >= 0.0 && n.steady_tolerance < 1.0)) {
     v.add("numerics.steady_tolerance", "= " + number_text(n.steady_tolerance, 6) + " must lie in [0, 1)");
   }
-  const bool sample_ok = n.sample_every_strain > 0.0 && n.sample_every_strain <= 1.0;
+  bool sample_ok = n.sample_every_strain > 0.0 && n.sample_every_strain <= 1.0;
   if (!sample_ok) {
     // At most 1 strain unit between samples keeps the tank-treading angle
     // increments (gammadot / 2 per unit strain) unambiguous.
     v.add("numerics.sample_every_strain",
           "= " + number_text(n.sample_every_strain, 6) + " must lie in (0, 1]");
+  } else if (!(n.sample_every_strain >= kMinSampleEveryStrain)) {
+    v.add_value("numerics.sample_every_strain", n.sample_every_strain,
+                "lie in " + interval(kMinSampleEveryStrain, 1.0));
+    sample_ok = false;
   }
   if (!(positive_finite(n.steady_window_strain) &&
         (!sample_ok || n.steady_window_strain >= 2.0 * n.sample_every_strain))) {
     v.add("numerics.steady_window_strain", "= " + number_text(n.steady_window_strain, 6) +
                                                " must be finite and at least 2 sample_every_strain = " +
                                                number_text(2.0 * n.sample_every_strain, 6));
+  } else if (!(n.steady_window_strain <= kMaxStrain)) {
+    v.add_value("numerics.steady_window_strain", n.steady_window_strain,
+                "lie in [2 sample_every_strain, " + number_text(kMaxStrain) + "]");
   }
-  if (!(positive_finite(n.max_strain) && n.max_strain <= 1e4)) {
+  const bool strain_ok = positive_finite(n.max_strain) && n.max_strain <= kMaxStrain;
+  if (!strain_ok) {
     v.add("numerics.max_strain", "= " + number_text(n.max_strain, 6) + " must lie in (0, 1e4]");
+  } else if (sample_ok && n.max_strain / n.sample_every_strain > kMaxSamples) {
+    v.add_value("numerics.sample_every_strain", n.sample_every_strain,
+                "give at most " + number_text(kMaxSamples) + " samples up to max_strain = " +
+                    number_text(n.max_strain) + " (max_strain / sample_every_strain = " +
+                    number_text(n.max_strain / n.sample_every_strain, 6) + ")");
   }
   if (!(n.max_time_s >= 0.0 && std::isfinite(n.max_time_s))) {
     v.add("numerics.max_time_s",
           "= " + number_text(n.max_time_s, 6) + " must be >= 0 (0: no limit) and finite");
+  } else if (!(n.max_time_s <= kMaxTimeS)) {
+    v.add_value("numerics.max_time_s", n.max_time_s,
+                "lie in [0, " + number_text(kMaxTimeS) + "] s (0: no limit)");
   }
   if (!(n.snapshot_every_strain >= 0.0 && std::isfinite(n.snapshot_every_strain))) {
     v.add("numerics.snapshot_every_strain",
           "= " + number_text(n.snapshot_every_strain, 6) + " must be >= 0 (0: none)");
+  } else if (n.snapshot_every_strain > 0.0 &&
+             !(n.snapshot_every_strain >= kMinSnapshotEveryStrain && n.snapshot_every_strain <= kMaxStrain)) {
+    v.add_value("numerics.snapshot_every_strain", n.snapshot_every_strain,
+                "be 0 (none) or lie in " + interval(kMinSnapshotEveryStrain, kMaxStrain));
+  } else if (n.snapshot_every_strain > 0.0 && strain_ok &&
+             n.max_strain / n.snapshot_every_strain > kMaxSnapshots) {
+    v.add_value("numerics.snapshot_every_strain", n.snapshot_every_strain,
+                "give at most " + number_text(kMaxSnapshots) + " snapshots up to max_strain = " +
+                    number_text(n.max_strain) + " (max_strain / snapshot_every_strain = " +
+                    number_text(n.max_strain / n.snapshot_every_strain, 6) + ")");
   }
   if (!std::isfinite(n.memory_limit_bytes)) {
     v.add("numerics.memory_limit_bytes",
           "= " + number_text(n.memory_limit_bytes, 6) + " must be finite (<= 0: no limit)");
+  } else if (!(n.memory_limit_bytes <= units::kMaxLatticeBytes)) {
+    v.add_value("numerics.memory_limit_bytes", n.memory_limit_bytes,
+                "be at most " + number_text(units::kMaxLatticeBytes) +
+                    " (1 TiB, the lattice cap; <= 0: the cap alone)");
   }
   if (!(n.max_stiffness_ratio >= 0.0 && n.max_stiffness_ratio <= 100.0)) {
     v.add("numerics.max_stiffness_ratio",

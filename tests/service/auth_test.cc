@@ -183,7 +183,11 @@ TEST_F(AuthTest, WorkerApiOnlyOnItsListenerWithAWorkerCredential) {
   options.max_attempts = 1;
   client::Client misdirected(options);
   v1::ListJobsResponse listed;
-  EXPECT_EQ(misdirected.list(v1::ListJobsRequest(), &listed).error_code(), grpc::StatusCode::UNIMPLEMENTED);
+  // (the worker listener's interceptor refuses the user token before the router finds no such method)
+  const grpc::Status misdirected_list = misdirected.list(v1::ListJobsRequest(), &listed);
+  EXPECT_TRUE(misdirected_list.error_code() == grpc::StatusCode::UNIMPLEMENTED ||
+              misdirected_list.error_code() == grpc::StatusCode::PERMISSION_DENIED)
+      << misdirected_list.error_code() << " " << misdirected_list.error_message();
 
   const std::string id = submit(small_compression(3));
   // No credential, a user token, a forged one: no lease.
@@ -356,8 +360,10 @@ TEST_F(TlsTest, MutualTlsNeedsAClientCertificate) {
   const std::string id = submit(small_compression(3));
   ASSERT_TRUE(wait_state(id, v1::Job::SUCCEEDED, 60s)) << v1::Job::State_Name(get(id).state());
   v1::ListJobsResponse listed;
-  const grpc::Status without =
-      client::Client(tls_options(d + "/ca.pem")).list(v1::ListJobsRequest(), &listed);
+  client::ClientOptions no_certificate = tls_options(d + "/ca.pem");
+  no_certificate.tls_cert_pem.clear();
+  no_certificate.tls_key_pem.clear();
+  const grpc::Status without = client::Client(no_certificate).list(v1::ListJobsRequest(), &listed);
   EXPECT_EQ(without.error_code(), grpc::StatusCode::UNAVAILABLE) << without.error_message();
 }
 

@@ -65,7 +65,8 @@ std::string load_credentials(const CredentialSources& sources, ClientOptions* op
   return "";
 }
 
-Client::Client(ClientOptions options) : Client(options, rpc::make_channel(options.server, channel_options(options))) {}
+Client::Client(ClientOptions options)
+    : Client(options, rpc::make_channel(options.server, channel_options(options))) {}
 
 Client::Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel)
     : options_(std::move(options)),

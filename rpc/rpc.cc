@@ -85,8 +85,8 @@ cellflow::Status read_secret_file(const std::string& path, std::string* out) {
   if ((st.st_mode & 077) != 0) {
     char mode[8];
     std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
-    return {cellflow::StatusCode::kInvalidArgument, "refusing token file " + path + ": mode " + mode +
-                                                        " lets others read it; run chmod 600 " + path};
+    return {cellflow::StatusCode::kInvalidArgument,
+            "refusing token file " + path + ": mode " + mode + " lets others read it; run chmod 600 " + path};
   }
   std::string text;
   if (cellflow::Status s = read_file(path, &text); !s.ok()) return s;
@@ -100,7 +100,8 @@ cellflow::Status read_secret_file(const std::string& path, std::string* out) {
 cellflow::Status load_tls_files(const std::string& ca_file, const std::string& cert_file,
                                 const std::string& key_file, ChannelOptions* options) {
   if (cert_file.empty() != key_file.empty()) {
-    return {cellflow::StatusCode::kInvalidArgument, "a client certificate needs both --tls-cert and --tls-key"};
+    return {cellflow::StatusCode::kInvalidArgument,
+            "a client certificate needs both --tls-cert and --tls-key"};
   }
   if (!ca_file.empty()) {
     if (cellflow::Status s = read_file(ca_file, &options->tls_ca_pem); !s.ok()) return s;

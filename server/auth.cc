@@ -120,9 +120,10 @@ Verdict Authenticator::check(Api api, std::string_view authorization) const {
     verdict.identity = api == Api::kWorker ? Identity{"local-worker", false, true} : Identity::local();
     return verdict;
   }
-  const char* hint = api == Api::kPublic
-                         ? " (the client reads it from CELLFLOW_TOKEN, --token-file or ~/.config/cellflow/token)"
-                         : " (the worker reads it from CELLFLOW_WORKER_TOKEN or --token-file)";
+  const char* hint =
+      api == Api::kPublic
+          ? " (the client reads it from CELLFLOW_TOKEN, --token-file or ~/.config/cellflow/token)"
+          : " (the worker reads it from CELLFLOW_WORKER_TOKEN or --token-file)";
   constexpr std::string_view kBearer = "Bearer ";
   if (authorization.empty()) {
     verdict.status = {grpc::StatusCode::UNAUTHENTICATED,

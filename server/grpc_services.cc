@@ -44,10 +44,10 @@ grpc::Status authorize(const CallAuth* auth, const grpc::ServerContextBase* cont
   return auth->caller(context, caller);
 }
 
-#define CELLFLOW_AUTHORIZE(context, caller)                                          \
-  [[maybe_unused]] Identity caller;                                                  \
+#define CELLFLOW_AUTHORIZE(context, caller)                                       \
+  [[maybe_unused]] Identity caller;                                               \
   if (grpc::Status refused = authorize(auth_, context, &caller); !refused.ok()) { \
-    return refused;                                                                  \
+    return refused;                                                               \
   }
 
 }  // namespace

@@ -198,8 +198,7 @@ StatusOr<v1::Job> JobService::get(const std::string& job_id, const Identity& cal
   return store_.get(*id);
 }
 
-StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& request,
-                                                const Identity& caller) {
+StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& request, const Identity& caller) {
   if (request.page_size() < 0) return invalid_argument("page_size: must be >= 0");
   if (!v1::Job::State_IsValid(request.state())) return invalid_argument("state: unknown job state");
   const int page_size = request.page_size() == 0 ? options_.default_page_size
@@ -271,8 +270,7 @@ Status JobService::watch(const v1::WatchJobRequest& request,
 }
 
 Status JobService::download(const std::string& job_id,
-                            const std::function<bool(const v1::ResultChunk&)>& send,
-                            const Identity& caller) {
+                            const std::function<bool(const v1::ResultChunk&)>& send, const Identity& caller) {
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
   if (Status s = check_visible(*id, caller); !s.ok()) return s;

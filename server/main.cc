@@ -1,6 +1,5 @@
 // cellflow-server: see server/server.h and deploy/README.md.
 #include <spdlog/spdlog.h>
-
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -189,7 +188,8 @@ int main(int argc, char** argv) {
   create->add_flag("--admin", command.admin, "the token sees and manages every user's jobs");
   create->add_flag("--worker", command.worker, "a worker credential: the worker API only");
   create->fallthrough();
-  auto* list = token->add_subcommand("list", "list tokens: id, user, role, created, revoked (never the token)");
+  auto* list =
+      token->add_subcommand("list", "list tokens: id, user, role, created, revoked (never the token)");
   list->fallthrough();
   auto* revoke = token->add_subcommand("revoke", "revoke the tokens of a user, or one token by id");
   revoke->add_option("--user", command.user, "revoke every token of this user");

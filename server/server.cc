@@ -96,8 +96,9 @@ Status check_listeners(const ServerOptions& options) {
     }
     if (!tls && !options.insecure_listen) {
       return {StatusCode::kInvalidArgument,
-              *address + " is reachable from other hosts: give --tls-cert and --tls-key (tokens would "
-                         "travel in plaintext), or --insecure-listen on a network you trust"};
+              *address +
+                  " is reachable from other hosts: give --tls-cert and --tls-key (tokens would "
+                  "travel in plaintext), or --insecure-listen on a network you trust"};
     }
     if (!tls) spdlog::warn("--insecure-listen: {} serves plaintext gRPC; tokens can be sniffed", *address);
   }
@@ -261,8 +262,9 @@ int run_server(const ServerOptions& options) {
   if (auth_mode == AuthMode::kNone) {
     spdlog::warn("--auth none: no tokens are checked; every caller is the local admin (loopback only)");
   } else if ((*store)->count_tokens() == 0) {
-    spdlog::warn("no token exists yet: create one with `cellflow-server token create --user NAME --data-dir {}`",
-                 options.data_dir);
+    spdlog::warn(
+        "no token exists yet: create one with `cellflow-server token create --user NAME --data-dir {}`",
+        options.data_dir);
   }
   CallAuth public_calls, worker_calls;
   CellflowServiceImpl public_api(jobs, &public_calls);
@@ -313,9 +315,9 @@ int run_server(const ServerOptions& options) {
   }
   const std::string host = host_of(options.listen);
   const char* security = options.tls_cert.empty() ? "plaintext" : "TLS";
-  std::cout << "cellflow-server listening on " << host << ":" << port << " (" << security
-            << ", auth " << options.auth << "); worker API on "
-            << bound_address(options.worker_listen, worker_port) << std::endl;
+  std::cout << "cellflow-server listening on " << host << ":" << port << " (" << security << ", auth "
+            << options.auth << "); worker API on " << bound_address(options.worker_listen, worker_port)
+            << std::endl;
   if (!options.port_file.empty() && !write_port_file(options.port_file, port)) {
     spdlog::error("cannot write {}", options.port_file);
     return 1;

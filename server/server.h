@@ -22,9 +22,9 @@ struct ServerOptions {
   std::string tls_key;           // its private key
   std::string tls_client_ca;     // if set, clients and workers must present a certificate it signed (mTLS)
   bool insecure_listen = false;  // allow a non-loopback listener without TLS
-  int workers = 0;                         // local cellflow-worker processes
-  std::string worker_path;                 // default: cellflow-worker beside this binary
-  std::vector<std::string> worker_args;    // extra arguments for local workers
+  int workers = 0;               // local cellflow-worker processes
+  std::string worker_path;       // default: cellflow-worker beside this binary
+  std::vector<std::string> worker_args;  // extra arguments for local workers
   double lease_ttl_s = 10.0;
   double heartbeat_interval_s = 0.25;
   int max_attempts = 3;

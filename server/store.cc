@@ -848,9 +848,8 @@ StatusOr<std::vector<TokenRecord>> Store::list_tokens() {
 
 StatusOr<int> Store::revoke_tokens(std::int64_t id, const std::string& user, std::int64_t now_ms) {
   std::lock_guard lock(write_mutex_);
-  Stmt update(writer_,
-              id > 0 ? "UPDATE tokens SET revoke_ms = ?1 WHERE id = ?2 AND revoke_ms IS NULL"
-                     : "UPDATE tokens SET revoke_ms = ?1 WHERE user = ?3 AND revoke_ms IS NULL");
+  Stmt update(writer_, id > 0 ? "UPDATE tokens SET revoke_ms = ?1 WHERE id = ?2 AND revoke_ms IS NULL"
+                              : "UPDATE tokens SET revoke_ms = ?1 WHERE user = ?3 AND revoke_ms IS NULL");
   update.bind(1, now_ms);
   if (id > 0) {
     update.bind(2, id);

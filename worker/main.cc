@@ -16,7 +16,8 @@ int main(int argc, char** argv) {
   if (const char* env = std::getenv("CELLFLOW_SERVER")) options.server_address = env;
   std::string log_level = "info";
   CLI::App app{"cellflow-worker: runs cellflow jobs leased from a cellflow-server"};
-  app.add_option("--server", options.server_address, "the server's worker listener, host:port or unix:PATH (env CELLFLOW_SERVER)")
+  app.add_option("--server", options.server_address,
+                 "the server's worker listener, host:port or unix:PATH (env CELLFLOW_SERVER)")
       ->capture_default_str();
   app.add_option("--name", options.name, "worker name; the worker id is name@host:pid")
       ->capture_default_str();
@@ -34,7 +35,8 @@ int main(int argc, char** argv) {
   std::string token_file, tls_ca, tls_cert, tls_key;
   app.add_option("--token-file", token_file,
                  "file holding the worker token, mode 0600 (default: env CELLFLOW_WORKER_TOKEN)");
-  app.add_option("--tls-ca", tls_ca, "CA certificate (PEM) of the server's certificate: use TLS (env CELLFLOW_TLS_CA)");
+  app.add_option("--tls-ca", tls_ca,
+                 "CA certificate (PEM) of the server's certificate: use TLS (env CELLFLOW_TLS_CA)");
   app.add_option("--tls-cert", tls_cert, "client certificate (PEM) for mTLS (env CELLFLOW_TLS_CERT)");
   app.add_option("--tls-key", tls_key, "client key (PEM) for mTLS (env CELLFLOW_TLS_KEY)");
   app.add_option("--tls-server-name", options.channel.tls_server_name,

@@ -32,7 +32,7 @@ using rpc::seconds_to_ms;
 }  // namespace
 
 std::unique_ptr<v1::WorkerService::StubInterface> Worker::connect(const std::string& address,
-                                                                 const rpc::ChannelOptions& channel) {
+                                                                  const rpc::ChannelOptions& channel) {
   // The channel reconnects quickly after a server restart (rpc::ChannelOptions).
   return v1::WorkerService::NewStub(rpc::make_channel(address, channel));
 }

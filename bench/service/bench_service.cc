@@ -28,9 +28,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <iterator>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -38,9 +38,9 @@
 
 #include "cellflow/v1/worker.grpc.pb.h"
 #include "client/rpc_client.h"
-#include "rpc/rpc.h"
-#include "physics/scenes/quasi_static/quasi_static.h"
 #include "jobs/job_spec.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
+#include "rpc/rpc.h"
 
 namespace {
 
@@ -54,16 +54,17 @@ double seconds_since(Clock::time_point start) {
 
 // How the server is secured in one run of the benchmark.
 struct Mode {
-  std::string name;           // none, token, token+tls
-  bool tokens = false;        // --auth token (else --auth none)
-  bool tls = false;           // --tls-cert/--tls-key from cert_dir
-  fs::path cert_dir;          // ca.pem, server.pem, server.key
-  std::string user_token;     // set by Server
-  std::string worker_token;   // set by Server
+  std::string name;          // none, token, token+tls
+  bool tokens = false;       // --auth token (else --auth none)
+  bool tls = false;          // --tls-cert/--tls-key from cert_dir
+  fs::path cert_dir;         // ca.pem, server.pem, server.key
+  std::string user_token;    // set by Server
+  std::string worker_token;  // set by Server
   std::string ca_pem;
 };
 
-Mode make_mode(const std::string& name, bool tokens = false, bool tls = false, const fs::path& cert_dir = {}) {
+Mode make_mode(const std::string& name, bool tokens = false, bool tls = false,
+               const fs::path& cert_dir = {}) {
   Mode mode;
   mode.name = name;
   mode.tokens = tokens;
@@ -91,7 +92,8 @@ bool make_certificates(const fs::path& dir) {
   const std::string ec = " -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes";
   std::ofstream(dir / "san.ext") << "subjectAltName=DNS:localhost,IP:127.0.0.1\nbasicConstraints=CA:FALSE\n";
   for (const std::string& command :
-       {"openssl req -x509" + ec + " -days 2 -subj /CN=bench-ca -keyout " + d + "/ca.key -out " + d + "/ca.pem",
+       {"openssl req -x509" + ec + " -days 2 -subj /CN=bench-ca -keyout " + d + "/ca.key -out " + d +
+            "/ca.pem",
         "openssl req" + ec + " -subj /CN=localhost -keyout " + d + "/server.key -out " + d + "/server.csr",
         "openssl x509 -req -in " + d + "/server.csr -CA " + d + "/ca.pem -CAkey " + d +
             "/ca.key -CAcreateserial -days 2 -extfile " + d + "/san.ext -out " + d + "/server.pem"}) {
@@ -325,7 +327,8 @@ void bench_watchers(const fs::path& dir, int events, int watchers, Mode mode) {
   std::printf(
       "[%s] WatchJob fan-out: %d samples reported in %.3f s (%.0f events/s stored); %d watchers received all "
       "in %.3f s = %.0f events/s delivered\n",
-      mode.name.c_str(), events, reported, events / reported, watchers, last, static_cast<double>(events) * watchers / last);
+      mode.name.c_str(), events, reported, events / reported, watchers, last,
+      static_cast<double>(events) * watchers / last);
 }
 
 void bench_overhead(const fs::path& dir, int runs) {

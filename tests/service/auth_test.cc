@@ -239,9 +239,9 @@ TEST_F(AuthTest, NoAuthOnlyOnLoopbackAndPlaintextOnlyOnLoopbackUnlessInsecureLis
   refuses({"--listen", "0.0.0.0:0"}, "--tls-cert");
   // --insecure-listen: starts, with a warning.
   {
-    std::vector<std::string> argv = {CELLFLOW_SERVER_EXE, "--data-dir",     data_dir(),
-                                     "--listen",          "0.0.0.0:0",      "--worker-listen",
-                                     "127.0.0.1:0",       "--port-file",    (dir_ / "insecure-port").string(),
+    std::vector<std::string> argv = {CELLFLOW_SERVER_EXE, "--data-dir",  data_dir(),
+                                     "--listen",          "0.0.0.0:0",   "--worker-listen",
+                                     "127.0.0.1:0",       "--port-file", (dir_ / "insecure-port").string(),
                                      "--insecure-listen"};
     Process server(argv, (dir_ / "insecure.log").string());
     ASSERT_TRUE(eventually([&] { return fs::exists(dir_ / "insecure-port"); }, 20s)) << server.log();
@@ -315,7 +315,8 @@ TEST_F(TlsTest, ClientWithTheCaConnectsPlaintextAndWrongCaAreRefused) {
   const grpc::Status plain = client::Client(plaintext).list(v1::ListJobsRequest(), &listed);
   EXPECT_FALSE(plain.ok());
   EXPECT_EQ(plain.error_code(), grpc::StatusCode::UNAVAILABLE) << plain.error_message();
-  const grpc::Status wrong = client::Client(tls_options(d + "/other.pem")).list(v1::ListJobsRequest(), &listed);
+  const grpc::Status wrong =
+      client::Client(tls_options(d + "/other.pem")).list(v1::ListJobsRequest(), &listed);
   EXPECT_FALSE(wrong.ok());
   EXPECT_EQ(wrong.error_code(), grpc::StatusCode::UNAVAILABLE) << wrong.error_message();
   EXPECT_TRUE(client::Client(tls_options(d + "/ca.pem")).list(v1::ListJobsRequest(), &listed).ok());
@@ -341,8 +342,8 @@ TEST_F(TlsTest, MutualTlsNeedsAClientCertificate) {
   const std::string d = dir_.string();
   // A client certificate signed by the CA.
   for (const std::string& command : {
-           "openssl req -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -subj /CN=client -keyout " + d +
-               "/client.key -out " + d + "/client.csr",
+           "openssl req -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -subj /CN=client -keyout " +
+               d + "/client.key -out " + d + "/client.csr",
            "openssl x509 -req -in " + d + "/client.csr -CA " + d + "/ca.pem -CAkey " + d +
                "/ca.key -CAcreateserial -days 2 -out " + d + "/client.pem",
        }) {
@@ -354,8 +355,8 @@ TEST_F(TlsTest, MutualTlsNeedsAClientCertificate) {
   ASSERT_TRUE(rpc::read_file(d + "/ca.pem", &client_base_.tls_ca_pem).ok());
   ASSERT_TRUE(rpc::read_file(d + "/client.pem", &client_base_.tls_cert_pem).ok());
   ASSERT_TRUE(rpc::read_file(d + "/client.key", &client_base_.tls_key_pem).ok());
-  start_server(1, {"--tls-cert", d + "/server.pem", "--tls-key", d + "/server.key", "--tls-client-ca",
-                   d + "/ca.pem"});
+  start_server(
+      1, {"--tls-cert", d + "/server.pem", "--tls-key", d + "/server.key", "--tls-client-ca", d + "/ca.pem"});
   // The local worker (private socket) runs the job; the client presents its certificate.
   const std::string id = submit(small_compression(3));
   ASSERT_TRUE(wait_state(id, v1::Job::SUCCEEDED, 60s)) << v1::Job::State_Name(get(id).state());

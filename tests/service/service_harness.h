@@ -53,7 +53,8 @@ class Process {
     for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
       const std::string entry = *e;
       bool replaced = false;
-      for (const auto& add : env) replaced |= add.substr(0, add.find('=') + 1) == entry.substr(0, add.find('=') + 1);
+      for (const auto& add : env)
+        replaced |= add.substr(0, add.find('=') + 1) == entry.substr(0, add.find('=') + 1);
       if (!replaced) env_strings.push_back(entry);
     }
     env_strings.insert(env_strings.end(), env.begin(), env.end());
@@ -229,7 +230,8 @@ class ServiceTest : public ::testing::Test {
   // A worker on the worker listener with the worker token (or `env`, e.g.
   // no credential or another one).
   Process* start_worker(std::vector<std::string> extra = {}, std::vector<std::string> env = {"default"}) {
-    std::vector<std::string> argv = {CELLFLOW_WORKER_EXE, "--server", worker_address_, "--log-level", "debug"};
+    std::vector<std::string> argv = {CELLFLOW_WORKER_EXE, "--server", worker_address_, "--log-level",
+                                     "debug"};
     argv.insert(argv.end(), extra.begin(), extra.end());
     if (env.size() == 1 && env[0] == "default") env = {"CELLFLOW_WORKER_TOKEN=" + worker_token_};
     workers_.push_back(std::make_unique<Process>(
@@ -277,11 +279,11 @@ class ServiceTest : public ::testing::Test {
   std::vector<std::unique_ptr<Process>> workers_;
   int port_ = 0;
   int worker_port_ = 0;
-  std::string address_;         // the public listener
-  std::string worker_address_;  // the worker listener
-  bool auth_ = true;            // false: --auth none (set before start_server)
-  std::string token_;           // the user token of client_ and of CELLFLOW_TOKEN
-  std::string worker_token_;    // the worker token of start_worker
+  std::string address_;                // the public listener
+  std::string worker_address_;         // the worker listener
+  bool auth_ = true;                   // false: --auth none (set before start_server)
+  std::string token_;                  // the user token of client_ and of CELLFLOW_TOKEN
+  std::string worker_token_;           // the worker token of start_worker
   client::ClientOptions client_base_;  // TLS settings of the clients (client_options)
   std::unique_ptr<client::Client> client_;
 };

@@ -12,9 +12,9 @@
 #include <set>
 
 #include "io/h5md.h"
+#include "jobs/job_spec.h"
 #include "physics/scenes/quasi_static/quasi_static.h"
 #include "server/store.h"
-#include "jobs/job_spec.h"
 #include "tests/service/service_harness.h"
 
 namespace cellflow::testing {

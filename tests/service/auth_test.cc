@@ -264,19 +264,20 @@ TEST_F(AuthTest, NoAuthOnlyOnLoopbackAndPlaintextOnlyOnLoopbackUnlessInsecureLis
 // 127.0.0.1 signed by it, and a second CA that signed nothing of this server.
 class TlsTest : public AuthTest {
  protected:
+  const std::string openssl = CELLFLOW_OPENSSL;
   void make_certificates() {
     const std::string d = dir_.string();
     const std::string ec = " -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes";
     std::ofstream(dir_ / "san.ext") << "subjectAltName=DNS:localhost,IP:127.0.0.1\n"
                                        "basicConstraints=CA:FALSE\n";
     for (const std::string& command : {
-             "openssl req -x509" + ec + " -days 2 -subj /CN=cellflow-test-ca -keyout " + d + "/ca.key -out " +
-                 d + "/ca.pem",
-             "openssl req -x509" + ec + " -days 2 -subj /CN=other-ca -keyout " + d + "/other.key -out " + d +
-                 "/other.pem",
-             "openssl req" + ec + " -subj /CN=localhost -keyout " + d + "/server.key -out " + d +
+             openssl + " req -x509" + ec + " -days 2 -subj /CN=cellflow-test-ca -keyout " + d +
+                 "/ca.key -out " + d + "/ca.pem",
+             openssl + " req -x509" + ec + " -days 2 -subj /CN=other-ca -keyout " + d + "/other.key -out " +
+                 d + "/other.pem",
+             openssl + " req" + ec + " -subj /CN=localhost -keyout " + d + "/server.key -out " + d +
                  "/server.csr",
-             "openssl x509 -req -in " + d + "/server.csr -CA " + d + "/ca.pem -CAkey " + d +
+             openssl + " x509 -req -in " + d + "/server.csr -CA " + d + "/ca.pem -CAkey " + d +
                  "/ca.key -CAcreateserial -days 2 -extfile " + d + "/san.ext -out " + d + "/server.pem",
          }) {
       int code = 0;
@@ -342,9 +343,10 @@ TEST_F(TlsTest, MutualTlsNeedsAClientCertificate) {
   const std::string d = dir_.string();
   // A client certificate signed by the CA.
   for (const std::string& command : {
-           "openssl req -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -subj /CN=client -keyout " +
-               d + "/client.key -out " + d + "/client.csr",
-           "openssl x509 -req -in " + d + "/client.csr -CA " + d + "/ca.pem -CAkey " + d +
+           openssl +
+               " req -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -subj /CN=client -keyout " + d +
+               "/client.key -out " + d + "/client.csr",
+           openssl + " x509 -req -in " + d + "/client.csr -CA " + d + "/ca.pem -CAkey " + d +
                "/ca.key -CAcreateserial -days 2 -out " + d + "/client.pem",
        }) {
     int code = 0;

@@ -15,11 +15,12 @@ enum ExitCode : int {
   kExitCancelled = 4,        // the job was CANCELLED
   kExitNotFound = 5,         // no such job or result
   kExitUnavailable = 6,      // the server could not be reached
+  kExitDenied = 7,           // no valid token (UNAUTHENTICATED) or not allowed (PERMISSION_DENIED)
 };
 
 inline constexpr const char* kExitCodeHelp =
     "Exit codes: 0 succeeded, 1 usage, 2 invalid argument (spec refused), 3 job failed, 4 job cancelled, "
-    "5 not found, 6 server unreachable.";
+    "5 not found, 6 server unreachable, 7 not authenticated or not allowed.";
 
 inline int exit_code_for(const grpc::Status& status) {
   switch (status.error_code()) {
@@ -37,6 +38,9 @@ inline int exit_code_for(const grpc::Status& status) {
       return kExitUnavailable;
     case grpc::StatusCode::CANCELLED:
       return kExitCancelled;
+    case grpc::StatusCode::UNAUTHENTICATED:
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return kExitDenied;
     default:
       return kExitFailed;
   }

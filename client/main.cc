@@ -126,6 +126,17 @@ int main(int argc, char** argv) {
   app.add_option("--server", options.server, "server address host:port (env CELLFLOW_SERVER)")
       ->capture_default_str();
   app.add_option("--timeout-s", options.timeout_s, "deadline of each call")->capture_default_str();
+  client::CredentialSources credentials;
+  app.add_option("--token-file", credentials.token_file,
+                 "file holding the API token, mode 0600 (default: env CELLFLOW_TOKEN, else "
+                 "~/.config/cellflow/token if present)");
+  app.add_option("--tls-ca", credentials.tls_ca_file,
+                 "CA certificate (PEM) that signed the server's certificate: use TLS (env CELLFLOW_TLS_CA)");
+  app.add_option("--tls-cert", credentials.tls_cert_file,
+                 "client certificate (PEM) for mTLS (env CELLFLOW_TLS_CERT)");
+  app.add_option("--tls-key", credentials.tls_key_file, "client key (PEM) for mTLS (env CELLFLOW_TLS_KEY)");
+  app.add_option("--tls-server-name", options.tls_server_name,
+                 "name to check the server's certificate against (default: the host of --server)");
 
   // submit
   auto* submit = app.add_subcommand("submit", "submit a job from flags or from a JSON spec");
@@ -208,6 +219,10 @@ int main(int argc, char** argv) {
     return code == 0 ? ExitCode::kExitOk : ExitCode::kExitUsage;
   }
 
+  if (const std::string error = client::load_credentials(credentials, &options); !error.empty()) {
+    std::fprintf(stderr, "cellflow: %s\n", error.c_str());
+    return ExitCode::kExitUsage;
+  }
   client::Client client(options);
 
   if (submit->parsed()) {

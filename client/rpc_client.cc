@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
@@ -13,7 +15,58 @@ namespace cellflow::client {
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
-Client::Client(ClientOptions options) : Client(options, rpc::make_channel(options.server)) {}
+namespace {
+
+rpc::ChannelOptions channel_options(const ClientOptions& options) {
+  rpc::ChannelOptions channel;
+  channel.bearer_token = options.token;
+  channel.tls = options.tls;
+  channel.tls_ca_pem = options.tls_ca_pem;
+  channel.tls_cert_pem = options.tls_cert_pem;
+  channel.tls_key_pem = options.tls_key_pem;
+  channel.tls_server_name = options.tls_server_name;
+  return channel;
+}
+
+std::string env(const char* name) {
+  const char* value = std::getenv(name);
+  return value ? value : "";
+}
+
+}  // namespace
+
+std::string load_credentials(const CredentialSources& sources, ClientOptions* options) {
+  std::string token_file = sources.token_file;
+  if (token_file.empty() && !env("CELLFLOW_TOKEN").empty()) {
+    options->token = env("CELLFLOW_TOKEN");
+  } else {
+    if (token_file.empty() && !env("HOME").empty()) {
+      const std::string fallback = env("HOME") + "/.config/cellflow/token";
+      std::error_code error;
+      if (std::filesystem::exists(fallback, error)) token_file = fallback;
+    }
+    if (!token_file.empty()) {
+      if (Status s = rpc::read_secret_file(token_file, &options->token); !s.ok()) return s.message();
+    }
+  }
+  const bool from_flags = !sources.tls_ca_file.empty() || !sources.tls_cert_file.empty();
+  rpc::ChannelOptions channel;
+  const Status s = from_flags ? rpc::load_tls_files(sources.tls_ca_file, sources.tls_cert_file,
+                                                    sources.tls_key_file, &channel)
+                              : rpc::load_tls_files(env("CELLFLOW_TLS_CA"), env("CELLFLOW_TLS_CERT"),
+                                                    env("CELLFLOW_TLS_KEY"), &channel);
+  if (!s.ok()) return s.message();
+  if (channel.tls) {
+    options->tls = true;
+    options->tls_ca_pem = channel.tls_ca_pem;
+    options->tls_cert_pem = channel.tls_cert_pem;
+    options->tls_key_pem = channel.tls_key_pem;
+  }
+  return "";
+}
+
+Client::Client(ClientOptions options)
+    : Client(options, rpc::make_channel(options.server, channel_options(options))) {}
 
 Client::Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel)
     : options_(std::move(options)),

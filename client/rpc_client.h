@@ -20,7 +20,25 @@ struct ClientOptions {
   double timeout_s = 10.0;    // deadline of each unary call
   int max_attempts = 4;       // tries of a call answered UNAVAILABLE
   double reconnect_s = 60.0;  // how long watch/download keep reconnecting
+  // Credentials (see load_credentials): the bearer token sent on every call
+  // (empty: none), and TLS (on when tls is set; tls_ca_pem empty: the
+  // system's roots; cert and key: a client certificate for mTLS).
+  std::string token;
+  bool tls = false;
+  std::string tls_ca_pem, tls_cert_pem, tls_key_pem;
+  std::string tls_server_name;  // overrides the name checked against the server's certificate
 };
+
+// Where the client finds its credentials: the token from `token_file` if
+// given, else CELLFLOW_TOKEN, else ~/.config/cellflow/token if it exists (a
+// token file must have mode 0600 or stricter, or it is refused); TLS from
+// `tls_ca_file` if given, else CELLFLOW_TLS_CA (and CELLFLOW_TLS_CERT /
+// CELLFLOW_TLS_KEY for mTLS). Returns the reason on failure.
+struct CredentialSources {
+  std::string token_file;
+  std::string tls_ca_file, tls_cert_file, tls_key_file;
+};
+std::string load_credentials(const CredentialSources& sources, ClientOptions* options);
 
 class Client {
  public:

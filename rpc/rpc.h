@@ -12,9 +12,11 @@
 #include <memory>
 #include <string>
 
+#include "physics/core/status.h"
+
 namespace cellflow::rpc {
 
-// Channel arguments of every channel to the server.
+// Channel arguments of every channel to the server, and its credentials.
 struct ChannelOptions {
   // gRPC's reconnect backoff after a broken connection: starts at the initial
   // value and is capped at the max (gRPC's own defaults are 1 s and 120 s);
@@ -22,11 +24,38 @@ struct ChannelOptions {
   // server restart.
   int initial_reconnect_backoff_ms = 100;
   int max_reconnect_backoff_ms = 1000;
+
+  // Sent as `authorization: Bearer <token>` on every call (a client
+  // interceptor, so it works over TLS and over plaintext loopback); empty:
+  // no token.
+  std::string bearer_token;
+  // TLS: on when `tls` is set. The server's certificate is checked against
+  // tls_ca_pem (empty: the system's roots); tls_cert_pem and tls_key_pem are
+  // the client certificate for mTLS (both or neither); tls_server_name
+  // overrides the name checked against the certificate (default: the host
+  // of the address).
+  bool tls = false;
+  std::string tls_ca_pem;
+  std::string tls_cert_pem;
+  std::string tls_key_pem;
+  std::string tls_server_name;
 };
 
 grpc::ChannelArguments channel_arguments(const ChannelOptions& options = {});
-// An insecure channel to `address` (host:port) with the arguments above.
+// A channel to `address` (host:port, unix:PATH) with the arguments and
+// credentials above: TLS when options.tls, plaintext otherwise.
 std::shared_ptr<grpc::Channel> make_channel(const std::string& address, const ChannelOptions& options = {});
+
+// Reads a whole file (a PEM certificate, say) into *out.
+cellflow::Status read_file(const std::string& path, std::string* out);
+// Reads a secret (a token) from `path`, trimmed of surrounding whitespace.
+// Refuses a file that its group or others may read or write (mode must be
+// 0600 or stricter) and an empty one.
+cellflow::Status read_secret_file(const std::string& path, std::string* out);
+// Fills the TLS fields from files: a CA file turns TLS on; cert and key
+// (both or neither) add a client certificate. Empty paths are skipped.
+cellflow::Status load_tls_files(const std::string& ca_file, const std::string& cert_file,
+                                const std::string& key_file, ChannelOptions* options);
 
 // Seconds (as in the options and the protos) to milliseconds; `fallback` for s <= 0.
 std::chrono::milliseconds seconds_to_ms(double s, std::chrono::milliseconds fallback);

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Quick-start demo: builds cellflow, starts a local server with two workers on
-# an ephemeral loopback port, submits a compression job with the client,
+# Quick-start demo: builds cellflow, creates an API token, starts a local
+# server with two workers on an ephemeral loopback port, submits a compression job with the client,
 # streams the force-deformation curve to the terminal, writes the plot and the
 # HDF5 result, and stops the server.
 set -euo pipefail
@@ -18,8 +18,12 @@ out=${CELLFLOW_DEMO_DIR:-demo-out}
 mkdir -p "$out"
 data_dir=$(mktemp -d)
 port_file="$data_dir/port"
+# Authentication is on: a token for this demo's user, shown once, handed to
+# the client in its environment (CELLFLOW_TOKEN).
+CELLFLOW_TOKEN=$("$build_dir/bin/cellflow-server" token create --user demo --data-dir "$data_dir")
+export CELLFLOW_TOKEN
 "$build_dir/bin/cellflow-server" --listen 127.0.0.1:0 --port-file "$port_file" \
-  --data-dir "$data_dir" --workers 2 --log-level warn &
+  --worker-listen 127.0.0.1:0 --data-dir "$data_dir" --workers 2 --log-level warn &
 server_pid=$!
 trap 'kill -TERM $server_pid 2>/dev/null || true; wait $server_pid 2>/dev/null || true; rm -rf "$data_dir"' EXIT
 for _ in $(seq 100); do [ -s "$port_file" ] && break; sleep 0.1; done

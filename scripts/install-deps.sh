@@ -7,6 +7,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git clang-format
   libeigen3-dev libtet1.5-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libssl-dev openssl
   libprotobuf-dev protobuf-compiler libgrpc++-dev protobuf-compiler-grpc
   libsqlite3-dev sqlite3
   libhdf5-dev hdf5-tools

@@ -34,34 +34,55 @@ grpc::Status reply(StatusOr<T> result, Out* out, bool draining = false) {
   return grpc::Status::OK;
 }
 
+// The caller as the listener's interceptor identified it; a refused call
+// stops here, before the service logic.
+grpc::Status authorize(const CallAuth* auth, const grpc::ServerContextBase* context, Identity* caller) {
+  if (auth == nullptr) {
+    *caller = Identity::local();
+    return grpc::Status::OK;
+  }
+  return auth->caller(context, caller);
+}
+
+#define CELLFLOW_AUTHORIZE(context, caller)                                       \
+  [[maybe_unused]] Identity caller;                                               \
+  if (grpc::Status refused = authorize(auth_, context, &caller); !refused.ok()) { \
+    return refused;                                                               \
+  }
+
 }  // namespace
 
-grpc::Status CellflowServiceImpl::SubmitJob(grpc::ServerContext*, const v1::SubmitJobRequest* request,
+grpc::Status CellflowServiceImpl::SubmitJob(grpc::ServerContext* context, const v1::SubmitJobRequest* request,
                                             v1::SubmitJobResponse* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
   if (jobs_.draining()) return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down"};
-  return reply(jobs_.submit(*request), response);
+  return reply(jobs_.submit(*request, caller), response);
 }
 
-grpc::Status CellflowServiceImpl::GetJob(grpc::ServerContext*, const v1::GetJobRequest* request,
+grpc::Status CellflowServiceImpl::GetJob(grpc::ServerContext* context, const v1::GetJobRequest* request,
                                          v1::Job* response) {
-  return reply(jobs_.get(request->job_id()), response);
+  CELLFLOW_AUTHORIZE(context, caller)
+  return reply(jobs_.get(request->job_id(), caller), response);
 }
 
-grpc::Status CellflowServiceImpl::ListJobs(grpc::ServerContext*, const v1::ListJobsRequest* request,
+grpc::Status CellflowServiceImpl::ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest* request,
                                            v1::ListJobsResponse* response) {
-  return reply(jobs_.list(*request), response);
+  CELLFLOW_AUTHORIZE(context, caller)
+  return reply(jobs_.list(*request, caller), response);
 }
 
-grpc::Status CellflowServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* request,
+grpc::Status CellflowServiceImpl::CancelJob(grpc::ServerContext* context, const v1::CancelJobRequest* request,
                                             v1::Job* response) {
-  return reply(jobs_.cancel(request->job_id()), response);
+  CELLFLOW_AUTHORIZE(context, caller)
+  return reply(jobs_.cancel(request->job_id(), caller), response);
 }
 
 grpc::Status CellflowServiceImpl::WatchJob(grpc::ServerContext* context, const v1::WatchJobRequest* request,
                                            grpc::ServerWriter<v1::JobEvent>* writer) {
+  CELLFLOW_AUTHORIZE(context, caller)
   Status status = jobs_.watch(
       *request, [&](const v1::JobEvent& event) { return writer->Write(event); },
-      [&] { return context->IsCancelled(); });
+      [&] { return context->IsCancelled(); }, caller);
   // A watch cut short by shutdown: UNAVAILABLE, so the client resumes.
   return to_grpc(status, !status.ok() && status.code() == StatusCode::kCancelled && jobs_.draining());
 }
@@ -69,18 +90,21 @@ grpc::Status CellflowServiceImpl::WatchJob(grpc::ServerContext* context, const v
 grpc::Status CellflowServiceImpl::DownloadResult(grpc::ServerContext* context,
                                                  const v1::DownloadResultRequest* request,
                                                  grpc::ServerWriter<v1::ResultChunk>* writer) {
-  return to_grpc(jobs_.download(request->job_id(), [&](const v1::ResultChunk& chunk) {
-    return !context->IsCancelled() && writer->Write(chunk);
-  }));
+  CELLFLOW_AUTHORIZE(context, caller)
+  return to_grpc(jobs_.download(
+      request->job_id(),
+      [&](const v1::ResultChunk& chunk) { return !context->IsCancelled() && writer->Write(chunk); }, caller));
 }
 
 grpc::Status WorkerServiceImpl::LeaseJob(grpc::ServerContext* context, const v1::LeaseJobRequest* request,
                                          v1::LeaseJobResponse* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
   return reply(jobs_.lease(*request, [&] { return context->IsCancelled(); }), response);
 }
 
 grpc::Status WorkerServiceImpl::ReportJob(grpc::ServerContext* context,
                                           grpc::ServerReaderWriter<v1::ReportAck, v1::WorkerReport>* stream) {
+  CELLFLOW_AUTHORIZE(context, caller)
   v1::WorkerReport report;
   while (stream->Read(&report)) {
     auto ack = jobs_.report(report);
@@ -88,13 +112,13 @@ grpc::Status WorkerServiceImpl::ReportJob(grpc::ServerContext* context,
     if (!stream->Write(*ack)) return {grpc::StatusCode::CANCELLED, "the worker went away"};
     if (!ack->lease_valid()) break;  // the attempt is over; the worker stops
   }
-  (void)context;
   return grpc::Status::OK;
 }
 
 grpc::Status WorkerServiceImpl::UploadResult(grpc::ServerContext* context,
                                              grpc::ServerReader<v1::UploadChunk>* reader,
                                              v1::UploadResultResponse* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
   v1::UploadChunk chunk;
   if (!reader->Read(&chunk)) return {grpc::StatusCode::INVALID_ARGUMENT, "upload without chunks"};
   auto upload = jobs_.begin_upload(chunk.lease());
@@ -109,18 +133,21 @@ grpc::Status WorkerServiceImpl::UploadResult(grpc::ServerContext* context,
   return grpc::Status::OK;
 }
 
-grpc::Status WorkerServiceImpl::FinishJob(grpc::ServerContext*, const v1::FinishJobRequest* request,
+grpc::Status WorkerServiceImpl::FinishJob(grpc::ServerContext* context, const v1::FinishJobRequest* request,
                                           v1::FinishJobResponse* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
   return reply(jobs_.finish(*request), response);
 }
 
-grpc::Status WorkerServiceImpl::FailJob(grpc::ServerContext*, const v1::FailJobRequest* request,
+grpc::Status WorkerServiceImpl::FailJob(grpc::ServerContext* context, const v1::FailJobRequest* request,
                                         v1::FinishJobResponse* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
   return reply(jobs_.fail(*request), response);
 }
 
-grpc::Status WorkerServiceImpl::ReleaseJob(grpc::ServerContext*, const v1::ReleaseJobRequest* request,
+grpc::Status WorkerServiceImpl::ReleaseJob(grpc::ServerContext* context, const v1::ReleaseJobRequest* request,
                                            v1::FinishJobResponse* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
   return reply(jobs_.release(*request), response);
 }
 

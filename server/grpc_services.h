@@ -7,6 +7,7 @@
 
 #include "cellflow/v1/service.grpc.pb.h"
 #include "cellflow/v1/worker.grpc.pb.h"
+#include "server/auth.h"
 #include "server/job_service.h"
 
 namespace cellflow::server {
@@ -17,7 +18,9 @@ grpc::Status to_grpc(const Status& status, bool draining = false);
 
 class CellflowServiceImpl final : public v1::CellflowService::Service {
  public:
-  explicit CellflowServiceImpl(JobService& jobs) : jobs_(jobs) {}
+  // `auth`: the verdicts of the listener's interceptor (server/auth.h); null:
+  // every call is the local admin (in-process use only).
+  explicit CellflowServiceImpl(JobService& jobs, const CallAuth* auth = nullptr) : jobs_(jobs), auth_(auth) {}
 
   grpc::Status SubmitJob(grpc::ServerContext* context, const v1::SubmitJobRequest* request,
                          v1::SubmitJobResponse* response) override;
@@ -34,11 +37,12 @@ class CellflowServiceImpl final : public v1::CellflowService::Service {
 
  private:
   JobService& jobs_;
+  const CallAuth* auth_;
 };
 
 class WorkerServiceImpl final : public v1::WorkerService::Service {
  public:
-  explicit WorkerServiceImpl(JobService& jobs) : jobs_(jobs) {}
+  explicit WorkerServiceImpl(JobService& jobs, const CallAuth* auth = nullptr) : jobs_(jobs), auth_(auth) {}
 
   grpc::Status LeaseJob(grpc::ServerContext* context, const v1::LeaseJobRequest* request,
                         v1::LeaseJobResponse* response) override;
@@ -55,6 +59,7 @@ class WorkerServiceImpl final : public v1::WorkerService::Service {
 
  private:
   JobService& jobs_;
+  const CallAuth* auth_;
 };
 
 }  // namespace cellflow::server

@@ -149,7 +149,17 @@ void JobService::published(const v1::Job& job) {
   if (auto id = parse_job_name(job.id())) notifier_.publish(*id, job.last_sequence());
 }
 
-StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& request) {
+Status JobService::check_visible(std::int64_t id, const Identity& caller) {
+  if (caller.admin) return {};
+  auto owner = store_.job_owner(id);
+  if (!owner.ok()) return owner.status();
+  // Another user's job reads as missing: ids of other users' jobs do not leak.
+  if (!caller.sees(*owner)) return {StatusCode::kNotFound, "job " + job_name(id) + " not found"};
+  return {};
+}
+
+StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& request,
+                                                   const Identity& caller) {
   if (draining()) return Status(StatusCode::kFailedPrecondition, "the server is shutting down");
   if (static_cast<int>(request.request_id().size()) > options_.max_request_id_length) {
     return invalid_argument("request_id: at most " + std::to_string(options_.max_request_id_length) +
@@ -166,7 +176,7 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
             std::to_string(options_.memory_limit_bytes >> 20) +
             " MiB (--memory-limit-bytes); lower cell.target_vertex_count or the lattice resolution");
   }
-  auto submitted = store_.submit(request.spec(), request.request_id(), memory, now());
+  auto submitted = store_.submit(request.spec(), request.request_id(), memory, now(), caller.user);
   if (!submitted.ok()) return submitted.status();
   if (!submitted->existed) {
     published(submitted->job);
@@ -181,13 +191,14 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
   return response;
 }
 
-StatusOr<v1::Job> JobService::get(const std::string& job_id) {
+StatusOr<v1::Job> JobService::get(const std::string& job_id, const Identity& caller) {
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
+  if (Status s = check_visible(*id, caller); !s.ok()) return s;
   return store_.get(*id);
 }
 
-StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& request) {
+StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& request, const Identity& caller) {
   if (request.page_size() < 0) return invalid_argument("page_size: must be >= 0");
   if (!v1::Job::State_IsValid(request.state())) return invalid_argument("state: unknown job state");
   const int page_size = request.page_size() == 0 ? options_.default_page_size
@@ -198,7 +209,7 @@ StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& reque
     if (!decoded.ok()) return decoded.status();
     after = *decoded;
   }
-  auto jobs = store_.list(after, page_size + 1, request.state());
+  auto jobs = store_.list(after, page_size + 1, request.state(), caller.admin ? nullptr : &caller.user);
   if (!jobs.ok()) return jobs.status();
   v1::ListJobsResponse response;
   const bool more = static_cast<int>(jobs->size()) > page_size;
@@ -211,9 +222,10 @@ StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& reque
   return response;
 }
 
-StatusOr<v1::Job> JobService::cancel(const std::string& job_id) {
+StatusOr<v1::Job> JobService::cancel(const std::string& job_id, const Identity& caller) {
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
+  if (Status s = check_visible(*id, caller); !s.ok()) return s;
   auto job = store_.cancel(*id, "cancelled by the client", now());
   if (job.ok()) {
     published(*job);
@@ -224,9 +236,10 @@ StatusOr<v1::Job> JobService::cancel(const std::string& job_id) {
 
 Status JobService::watch(const v1::WatchJobRequest& request,
                          const std::function<bool(const v1::JobEvent&)>& send,
-                         const std::function<bool()>& client_gone) {
+                         const std::function<bool()>& client_gone, const Identity& caller) {
   auto id = parse_id(request.job_id(), "job_id");
   if (!id.ok()) return id.status();
+  if (Status s = check_visible(*id, caller); !s.ok()) return s;
   if (request.after_sequence() < 0) return invalid_argument("after_sequence: must be >= 0");
   // Subscribe before the first read: a commit after the read wakes the wait.
   auto subscription = notifier_.subscribe(*id);
@@ -257,9 +270,10 @@ Status JobService::watch(const v1::WatchJobRequest& request,
 }
 
 Status JobService::download(const std::string& job_id,
-                            const std::function<bool(const v1::ResultChunk&)>& send) {
+                            const std::function<bool(const v1::ResultChunk&)>& send, const Identity& caller) {
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
+  if (Status s = check_visible(*id, caller); !s.ok()) return s;
   auto job = store_.get(*id);
   if (!job.ok()) return job.status();
   const fs::path path = result_path(*id);

@@ -15,6 +15,7 @@
 #include "cellflow/v1/worker.pb.h"
 #include "jobs/registry.h"
 #include "physics/core/status.h"
+#include "server/identity.h"
 #include "server/notifier.h"
 #include "server/store.h"
 
@@ -56,16 +57,23 @@ class JobService {
   JobService(Store& store, Notifier& notifier, JobServiceOptions options);
 
   // --- public API ---
-  StatusOr<v1::SubmitJobResponse> submit(const v1::SubmitJobRequest& request);
-  StatusOr<v1::Job> get(const std::string& job_id);
-  StatusOr<v1::ListJobsResponse> list(const v1::ListJobsRequest& request);
-  StatusOr<v1::Job> cancel(const std::string& job_id);
+  // Each call acts for `caller`: a job belongs to the identity that submitted
+  // it, and another user's job is kNotFound (as if it did not exist) unless
+  // the caller is an admin. The default is the single local admin of
+  // `--auth none`.
+  StatusOr<v1::SubmitJobResponse> submit(const v1::SubmitJobRequest& request,
+                                         const Identity& caller = Identity::local());
+  StatusOr<v1::Job> get(const std::string& job_id, const Identity& caller = Identity::local());
+  StatusOr<v1::ListJobsResponse> list(const v1::ListJobsRequest& request,
+                                      const Identity& caller = Identity::local());
+  StatusOr<v1::Job> cancel(const std::string& job_id, const Identity& caller = Identity::local());
   // Sends the events after request.after_sequence, then follows live until
   // the terminal state event was sent (OK), `send` returns false or
   // `client_gone` returns true (kCancelled), or the service shuts down.
   Status watch(const v1::WatchJobRequest& request, const std::function<bool(const v1::JobEvent&)>& send,
-               const std::function<bool()>& client_gone);
-  Status download(const std::string& job_id, const std::function<bool(const v1::ResultChunk&)>& send);
+               const std::function<bool()>& client_gone, const Identity& caller = Identity::local());
+  Status download(const std::string& job_id, const std::function<bool(const v1::ResultChunk&)>& send,
+                  const Identity& caller = Identity::local());
 
   // --- worker API ---
   StatusOr<v1::LeaseJobResponse> lease(const v1::LeaseJobRequest& request,
@@ -98,6 +106,8 @@ class JobService {
   // Moves the attempt's upload (if any) into place as the job's result.
   StatusOr<std::int64_t> adopt_upload(const v1::Lease& lease, std::int64_t job_id);
   void published(const v1::Job& job);
+  // kNotFound unless `caller` may see job `id`.
+  Status check_visible(std::int64_t id, const Identity& caller);
 
   Store& store_;
   Notifier& notifier_;

@@ -1,10 +1,127 @@
 // cellflow-server: see server/server.h and deploy/README.md.
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
 
 #include "physics/core/passive_threads.h"
+#include "server/auth.h"
 #include "server/server.h"
+#include "server/store.h"
+
+namespace {
+
+using namespace cellflow;
+
+std::int64_t now_ms() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string time_text(std::int64_t ms) {
+  if (ms == 0) return "-";
+  const std::time_t seconds = ms / 1000;
+  char buffer[32];
+  std::strftime(buffer, sizeof buffer, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&seconds));
+  return buffer;
+}
+
+StatusOr<std::unique_ptr<server::Store>> open_store(const std::string& data_dir) {
+  std::error_code error;
+  std::filesystem::create_directories(data_dir, error);
+  server::StoreOptions options;
+  options.path = (std::filesystem::path(data_dir) / "cellflow.sqlite").string();
+  return server::Store::open(options);
+}
+
+struct TokenCommand {
+  std::string user;
+  bool admin = false;
+  bool worker = false;
+  std::int64_t id = 0;
+};
+
+// `token create`: the token on stdout, alone, once; only its hash is stored.
+int token_create(const std::string& data_dir, const TokenCommand& command) {
+  if (!server::valid_user_name(command.user)) {
+    std::fprintf(stderr, "cellflow-server: --user must be 1..64 of A-Z a-z 0-9 . _ @ -\n");
+    return 1;
+  }
+  if (command.admin && command.worker) {
+    std::fprintf(stderr, "cellflow-server: a token is either --admin or --worker\n");
+    return 1;
+  }
+  auto store = open_store(data_dir);
+  if (!store.ok()) {
+    std::fprintf(stderr, "cellflow-server: %s\n", store.status().to_string().c_str());
+    return 1;
+  }
+  auto token = server::generate_token();
+  if (!token.ok()) {
+    std::fprintf(stderr, "cellflow-server: %s\n", token.status().to_string().c_str());
+    return 1;
+  }
+  const std::string role = command.worker ? "worker" : command.admin ? "admin" : "user";
+  auto id = (*store)->add_token(command.user, role, server::hash_token(*token), now_ms());
+  if (!id.ok()) {
+    std::fprintf(stderr, "cellflow-server: %s\n", id.status().to_string().c_str());
+    return 1;
+  }
+  std::printf("%s\n", token->c_str());
+  if (::isatty(STDERR_FILENO)) {
+    std::fprintf(stderr,
+                 "token %lld (%s, %s) created; it is shown only this once. Clients read it from "
+                 "CELLFLOW_TOKEN or a 0600 file (~/.config/cellflow/token), workers from "
+                 "CELLFLOW_WORKER_TOKEN or --token-file.\n",
+                 static_cast<long long>(*id), command.user.c_str(), role.c_str());
+  }
+  return 0;
+}
+
+int token_list(const std::string& data_dir) {
+  auto store = open_store(data_dir);
+  if (!store.ok()) {
+    std::fprintf(stderr, "cellflow-server: %s\n", store.status().to_string().c_str());
+    return 1;
+  }
+  auto tokens = (*store)->list_tokens();
+  if (!tokens.ok()) {
+    std::fprintf(stderr, "cellflow-server: %s\n", tokens.status().to_string().c_str());
+    return 1;
+  }
+  std::printf("%-6s %-24s %-7s %-21s %s\n", "id", "user", "role", "created", "revoked");
+  for (const auto& t : *tokens) {
+    std::printf("%-6lld %-24s %-7s %-21s %s\n", static_cast<long long>(t.id), t.user.c_str(), t.role.c_str(),
+                time_text(t.create_ms).c_str(), time_text(t.revoke_ms).c_str());
+  }
+  return 0;
+}
+
+int token_revoke(const std::string& data_dir, const TokenCommand& command) {
+  if ((command.id > 0) == !command.user.empty()) {
+    std::fprintf(stderr, "cellflow-server: token revoke needs --user NAME or --id N\n");
+    return 1;
+  }
+  auto store = open_store(data_dir);
+  if (!store.ok()) {
+    std::fprintf(stderr, "cellflow-server: %s\n", store.status().to_string().c_str());
+    return 1;
+  }
+  auto revoked = (*store)->revoke_tokens(command.id, command.user, now_ms());
+  if (!revoked.ok()) {
+    std::fprintf(stderr, "cellflow-server: %s\n", revoked.status().to_string().c_str());
+    return 1;
+  }
+  std::printf("%d token(s) revoked\n", *revoked);
+  return *revoked > 0 ? 0 : 2;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
@@ -42,8 +159,47 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 86400.0));
   app.add_flag("--sqlite-synchronous-full", options.sqlite_synchronous_full,
                "fsync every commit (survives power loss; default survives process crashes)");
+  app.add_option("--worker-listen", options.worker_listen,
+                 "address of the worker API (its own listener and credential): host:port or unix:PATH")
+      ->capture_default_str();
+  app.add_option("--worker-port-file", options.worker_port_file,
+                 "write the port of the worker listener to this file");
+  app.add_option("--auth", options.auth,
+                 "token: every call needs a bearer token (cellflow-server token create); none: no "
+                 "tokens, every caller is the local admin (only with loopback listeners)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"token", "none"}));
+  app.add_option("--tls-cert", options.tls_cert, "PEM certificate (chain) of both listeners: serve TLS");
+  app.add_option("--tls-key", options.tls_key, "PEM private key of --tls-cert");
+  app.add_option("--tls-client-ca", options.tls_client_ca,
+                 "PEM CA: clients and workers must present a certificate it signed (mTLS)");
+  app.add_flag("--insecure-listen", options.insecure_listen,
+               "allow a listener reachable from other hosts without TLS (tokens travel in plaintext)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+
+  // cellflow-server token create|list|revoke: API tokens in the database of --data-dir.
+  auto* token = app.add_subcommand("token", "manage API tokens (in the database of --data-dir)");
+  token->require_subcommand(1);
+  token->fallthrough();
+  TokenCommand command;
+  auto* create = token->add_subcommand("create", "create a token and print it (once; only its hash is kept)");
+  create->add_option("--user", command.user, "the identity the token stands for (owner of its jobs)")
+      ->required();
+  create->add_flag("--admin", command.admin, "the token sees and manages every user's jobs");
+  create->add_flag("--worker", command.worker, "a worker credential: the worker API only");
+  create->fallthrough();
+  auto* list =
+      token->add_subcommand("list", "list tokens: id, user, role, created, revoked (never the token)");
+  list->fallthrough();
+  auto* revoke = token->add_subcommand("revoke", "revoke the tokens of a user, or one token by id");
+  revoke->add_option("--user", command.user, "revoke every token of this user");
+  revoke->add_option("--id", command.id, "revoke the token with this id");
+  revoke->fallthrough();
+
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::from_str(log_level));
+  if (create->parsed()) return token_create(options.data_dir, command);
+  if (list->parsed()) return token_list(options.data_dir);
+  if (revoke->parsed()) return token_revoke(options.data_dir, command);
   return cellflow::server::run_server(options);
 }

@@ -15,6 +15,8 @@
 #include <fstream>
 #include <iostream>
 
+#include "rpc/rpc.h"
+#include "server/auth.h"
 #include "server/grpc_services.h"
 #include "server/job_service.h"
 #include "server/notifier.h"
@@ -56,18 +58,72 @@ bool write_port_file(const std::string& path, int port) {
   return std::rename(temporary.c_str(), path.c_str()) == 0;
 }
 
+// TLS credentials of both listeners when a certificate is given, else plaintext.
+StatusOr<std::shared_ptr<grpc::ServerCredentials>> server_credentials(const ServerOptions& options) {
+  if (options.tls_cert.empty() && options.tls_key.empty()) {
+    if (!options.tls_client_ca.empty())
+      return Status(StatusCode::kInvalidArgument, "--tls-client-ca needs --tls-cert and --tls-key");
+    return grpc::InsecureServerCredentials();
+  }
+  if (options.tls_cert.empty() || options.tls_key.empty())
+    return Status(StatusCode::kInvalidArgument, "TLS needs both --tls-cert and --tls-key");
+  grpc::SslServerCredentialsOptions ssl;
+  grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
+  if (Status s = rpc::read_file(options.tls_key, &pair.private_key); !s.ok()) return s;
+  if (Status s = rpc::read_file(options.tls_cert, &pair.cert_chain); !s.ok()) return s;
+  ssl.pem_key_cert_pairs.push_back(std::move(pair));
+  if (!options.tls_client_ca.empty()) {
+    if (Status s = rpc::read_file(options.tls_client_ca, &ssl.pem_root_certs); !s.ok()) return s;
+    ssl.client_certificate_request = GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY;
+  }
+  return grpc::SslServerCredentials(ssl);
+}
+
+// The rules of server/README.md ("Authentication"): --auth none only with
+// every listener on loopback; a listener reachable from other hosts needs
+// TLS, unless --insecure-listen (tokens then travel in plaintext).
+Status check_listeners(const ServerOptions& options) {
+  if (options.auth != "token" && options.auth != "none")
+    return {StatusCode::kInvalidArgument, "--auth must be token or none"};
+  const bool tls = !options.tls_cert.empty();
+  for (const std::string* address : {&options.listen, &options.worker_listen}) {
+    if (is_loopback_address(*address)) continue;
+    if (options.auth == "none") {
+      return {StatusCode::kInvalidArgument,
+              "--auth none serves anyone who can connect: it is allowed only on loopback addresses "
+              "(127.0.0.0/8, ::1, localhost, unix:), not on " +
+                  *address};
+    }
+    if (!tls && !options.insecure_listen) {
+      return {StatusCode::kInvalidArgument,
+              *address +
+                  " is reachable from other hosts: give --tls-cert and --tls-key (tokens would "
+                  "travel in plaintext), or --insecure-listen on a network you trust"};
+    }
+    if (!tls) spdlog::warn("--insecure-listen: {} serves plaintext gRPC; tokens can be sniffed", *address);
+  }
+  return {};
+}
+
+// The chosen port of a listener ("host:port" with port 0 replaced).
+std::string bound_address(const std::string& address, int port) {
+  if (address.rfind("unix", 0) == 0) return address;
+  return host_of(address) + ":" + std::to_string(port);
+}
+
 // The shutdown sequence: drain (no new work; running jobs may finish for
 // grace_s), stop the local workers (they hand their jobs back), requeue what
 // still runs elsewhere, stop the gRPC server.
 class Shutdown {
  public:
   Shutdown(boost::asio::io_context& io, JobService& jobs, Notifier& notifier, WorkerPool& pool,
-           grpc::Server& server, double grace_s)
+           grpc::Server& server, grpc::Server& worker_server, double grace_s)
       : io_(io),
         jobs_(jobs),
         notifier_(notifier),
         pool_(pool),
         server_(server),
+        worker_server_(worker_server),
         grace_s_(grace_s),
         poll_(io) {}
 
@@ -82,6 +138,7 @@ class Shutdown {
     spdlog::info("signal {}: draining; running jobs may finish within {} s", signal_number, grace_s_);
     jobs_.set_draining(true);
     if (auto* health = server_.GetHealthCheckService()) health->SetServingStatus(false);
+    if (auto* health = worker_server_.GetHealthCheckService()) health->SetServingStatus(false);
     deadline_ =
         std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<int>(grace_s_ * 1000));
     poll();
@@ -118,7 +175,9 @@ class Shutdown {
     const int requeued = jobs_.release_all_running("the server shut down; the job will run again");
     if (requeued > 0) spdlog::info("{} running job(s) handed back to the queue", requeued);
     notifier_.shutdown();
-    server_.Shutdown(std::chrono::system_clock::now() + 2s);
+    const auto deadline = std::chrono::system_clock::now() + 2s;
+    server_.Shutdown(deadline);
+    worker_server_.Shutdown(deadline);
     io_.stop();
   }
 
@@ -127,6 +186,7 @@ class Shutdown {
   Notifier& notifier_;
   WorkerPool& pool_;
   grpc::Server& server_;
+  grpc::Server& worker_server_;
   double grace_s_;
   boost::asio::steady_timer poll_;
   Phase phase_ = Phase::kRunning;
@@ -145,6 +205,10 @@ void schedule_reaper(boost::asio::steady_timer& timer, JobService& jobs, std::ch
 }  // namespace
 
 int run_server(const ServerOptions& options) {
+  if (Status s = check_listeners(options); !s.ok()) {
+    spdlog::error("{}", s.message());
+    return 1;
+  }
   std::error_code error;
   fs::create_directories(options.data_dir, error);
   if (error) {
@@ -180,25 +244,86 @@ int run_server(const ServerOptions& options) {
   service_options.lease_ttl_s = options.lease_ttl_s;
   service_options.heartbeat_interval_s = options.heartbeat_interval_s;
   JobService jobs(**store, notifier, service_options);
-  CellflowServiceImpl public_api(jobs);
-  WorkerServiceImpl worker_api(jobs);
+  // Authentication: one verdict per call from each listener's interceptor.
+  const AuthMode auth_mode = options.auth == "none" ? AuthMode::kNone : AuthMode::kToken;
+  Authenticator authenticator((*store).get(), auth_mode);
+  // The local workers' credential: random per server start, kept in memory
+  // only (as a hash) and handed to them in their environment.
+  std::string local_worker_secret;
+  if (options.workers > 0) {
+    auto secret = generate_token();
+    if (!secret.ok()) {
+      spdlog::error("{}", secret.status().to_string());
+      return 1;
+    }
+    local_worker_secret = *secret;
+    authenticator.set_local_worker_secret(local_worker_secret);
+  }
+  if (auth_mode == AuthMode::kNone) {
+    spdlog::warn("--auth none: no tokens are checked; every caller is the local admin (loopback only)");
+  } else if ((*store)->count_tokens() == 0) {
+    spdlog::warn(
+        "no token exists yet: create one with `cellflow-server token create --user NAME --data-dir {}`",
+        options.data_dir);
+  }
+  CallAuth public_calls, worker_calls;
+  CellflowServiceImpl public_api(jobs, &public_calls);
+  WorkerServiceImpl worker_api(jobs, &worker_calls);
 
+  auto credentials = server_credentials(options);
+  if (!credentials.ok()) {
+    spdlog::error("{}", credentials.status().message());
+    return 1;
+  }
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  // Two servers: the public API on --listen, the worker API on
+  // --worker-listen (and, for the local pool, a private abstract Unix
+  // socket), so that reflection and routing of each list only its service.
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(options.listen, *credentials, &port);
   builder.RegisterService(&public_api);
-  builder.RegisterService(&worker_api);
+  {
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> interceptors;
+    interceptors.push_back(
+        std::make_unique<AuthInterceptorFactory>(authenticator, Authenticator::Api::kPublic, public_calls));
+    builder.experimental().SetInterceptorCreators(std::move(interceptors));
+  }
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) {
     spdlog::error("cannot listen on {}", options.listen);
     return 1;
   }
+  grpc::ServerBuilder worker_builder;
+  int worker_port = 0;
+  worker_builder.AddListeningPort(options.worker_listen, *credentials, &worker_port);
+  const std::string local_socket = "unix-abstract:cellflow-workers-" + std::to_string(::getpid()) + "-" +
+                                   hash_token(local_worker_secret).substr(0, 16);
+  if (options.workers > 0) worker_builder.AddListeningPort(local_socket, grpc::InsecureServerCredentials());
+  worker_builder.RegisterService(&worker_api);
+  {
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> interceptors;
+    interceptors.push_back(
+        std::make_unique<AuthInterceptorFactory>(authenticator, Authenticator::Api::kWorker, worker_calls));
+    worker_builder.experimental().SetInterceptorCreators(std::move(interceptors));
+  }
+  std::unique_ptr<grpc::Server> worker_server = worker_builder.BuildAndStart();
+  if (!worker_server || worker_port == 0) {
+    spdlog::error("cannot listen on {} (--worker-listen)", options.worker_listen);
+    return 1;
+  }
   const std::string host = host_of(options.listen);
-  std::cout << "cellflow-server listening on " << host << ":" << port << std::endl;
+  const char* security = options.tls_cert.empty() ? "plaintext" : "TLS";
+  std::cout << "cellflow-server listening on " << host << ":" << port << " (" << security << ", auth "
+            << options.auth << "); worker API on " << bound_address(options.worker_listen, worker_port)
+            << std::endl;
   if (!options.port_file.empty() && !write_port_file(options.port_file, port)) {
     spdlog::error("cannot write {}", options.port_file);
+    return 1;
+  }
+  if (!options.worker_port_file.empty() && !write_port_file(options.worker_port_file, worker_port)) {
+    spdlog::error("cannot write {}", options.worker_port_file);
     return 1;
   }
 
@@ -206,9 +331,9 @@ int run_server(const ServerOptions& options) {
   WorkerPoolOptions pool_options;
   pool_options.count = options.workers;
   pool_options.worker_path = options.worker_path.empty() ? default_worker_path() : options.worker_path;
-  // Local workers dial loopback whatever address the server listens on.
-  const bool wildcard = host == "0.0.0.0" || host == "[::]" || host.empty();
-  pool_options.server_address = (wildcard ? std::string("127.0.0.1") : host) + ":" + std::to_string(port);
+  // Local workers dial the private socket, whatever the listeners are.
+  pool_options.server_address = local_socket;
+  pool_options.worker_token = local_worker_secret;
   pool_options.extra_args = options.worker_args;
   WorkerPool pool(io, pool_options);
   pool.start();
@@ -218,7 +343,7 @@ int run_server(const ServerOptions& options) {
                                       std::chrono::milliseconds(1000));
   schedule_reaper(reaper, jobs, reap_period);
 
-  Shutdown shutdown(io, jobs, notifier, pool, *server, options.grace_s);
+  Shutdown shutdown(io, jobs, notifier, pool, *server, *worker_server, options.grace_s);
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   std::function<void()> wait_signal = [&] {
     signals.async_wait([&](const boost::system::error_code& e, int signal_number) {
@@ -231,6 +356,7 @@ int run_server(const ServerOptions& options) {
 
   io.run();
   server->Wait();
+  worker_server->Wait();
   spdlog::info("cellflow-server stopped");
   return 0;
 }

@@ -13,9 +13,18 @@ struct ServerOptions {
   std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free port
   std::string data_dir = "cellflow-data";  // cellflow.sqlite and results/
   std::string port_file;                   // if set, the chosen port is written here
-  int workers = 0;                         // local cellflow-worker processes
-  std::string worker_path;                 // default: cellflow-worker beside this binary
-  std::vector<std::string> worker_args;    // extra arguments for local workers
+  // The worker API (cellflow.v1.WorkerService) listens here only, never on
+  // `listen`; host:port (port 0: any free port) or unix:PATH.
+  std::string worker_listen = "127.0.0.1:50052";
+  std::string worker_port_file;  // if set, the worker listener's port is written here
+  std::string auth = "token";    // "token": bearer tokens on every call; "none": loopback only
+  std::string tls_cert;          // PEM certificate chain of both listeners: TLS on
+  std::string tls_key;           // its private key
+  std::string tls_client_ca;     // if set, clients and workers must present a certificate it signed (mTLS)
+  bool insecure_listen = false;  // allow a non-loopback listener without TLS
+  int workers = 0;               // local cellflow-worker processes
+  std::string worker_path;       // default: cellflow-worker beside this binary
+  std::vector<std::string> worker_args;  // extra arguments for local workers
   double lease_ttl_s = 10.0;
   double heartbeat_interval_s = 0.25;
   int max_attempts = 3;

@@ -49,7 +49,35 @@ CREATE TABLE events (
 ) WITHOUT ROWID;
 CREATE UNIQUE INDEX events_by_sample ON events (job_id, kind, sample_index) WHERE sample_index IS NOT NULL;
 )sql",
+    // 2: authentication. Every job has an owner; request ids are per owner
+    // (the UNIQUE request_id column holds owner + U+001F + the client's id;
+    // older jobs have owner ''); API tokens are kept as SHA-256 only.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT '';
+UPDATE jobs SET request_id = char(31) || request_id WHERE request_id IS NOT NULL;
+CREATE INDEX jobs_by_owner ON jobs (owner, id);
+CREATE TABLE tokens (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  user TEXT NOT NULL,
+  role TEXT NOT NULL CHECK (role IN ('user', 'admin', 'worker')),
+  hash TEXT NOT NULL UNIQUE,
+  create_ms INTEGER NOT NULL,
+  revoke_ms INTEGER
+);
+)sql",
 };
+
+// The request_id column of schema 2: owner, U+001F, the client's request id.
+constexpr char kRequestScope = '\x1f';
+
+std::string scoped_request_id(const std::string& owner, const std::string& request_id) {
+  return owner + kRequestScope + request_id;
+}
+
+std::string client_request_id(const std::string& stored) {
+  const auto separator = stored.find(kRequestScope);
+  return separator == std::string::npos ? stored : stored.substr(separator + 1);
+}
 
 Status sqlite_error(sqlite3* db, const std::string& what) {
   return {StatusCode::kInternal, "sqlite: " + what + ": " + (db ? sqlite3_errmsg(db) : "no connection")};
@@ -148,7 +176,7 @@ google::protobuf::Timestamp timestamp_from_ms(std::int64_t ms) {
 v1::Job job_from_row(const Stmt& row) {
   v1::Job job;
   job.set_id(job_name(row.int64(0)));
-  job.set_request_id(row.text(1));
+  job.set_request_id(client_request_id(row.text(1)));
   job.mutable_spec()->ParseFromString(row.blob(2));
   job.set_state(static_cast<v1::Job::State>(row.int64(3)));
   job.set_attempt(static_cast<int>(row.int64(4)));
@@ -384,13 +412,14 @@ Status Store::migrate() {
 }
 
 StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::string& request_id,
-                                         std::int64_t estimated_memory_bytes, std::int64_t now_ms) {
+                                         std::int64_t estimated_memory_bytes, std::int64_t now_ms,
+                                         const std::string& owner) {
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
   if (!request_id.empty()) {
     Stmt find(writer_, "SELECT id FROM jobs WHERE request_id = ?");
-    find.bind(1, request_id);
+    find.bind(1, scoped_request_id(owner, request_id));
     if (find.step() == SQLITE_ROW) {
       auto job = load_job(writer_, find.int64(0));
       if (!job.ok()) return job.status();
@@ -398,13 +427,14 @@ StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::str
     }
   }
   Stmt insert(writer_,
-              "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms) VALUES (?, ?, ?, ?, ?) "
-              "RETURNING id");
+              "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner) "
+              "VALUES (?, ?, ?, ?, ?, ?) RETURNING id");
   if (request_id.empty()) {
     insert.bind_null(1);
   } else {
-    insert.bind(1, request_id);
+    insert.bind(1, scoped_request_id(owner, request_id));
   }
+  insert.bind(6, owner);
   insert.bind_blob(2, spec.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
   insert.bind(4, estimated_memory_bytes).bind(5, now_ms);
   if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert job");
@@ -425,13 +455,16 @@ StatusOr<v1::Job> Store::get(std::int64_t job_id) {
   return load_job(r.get(), job_id);
 }
 
-StatusOr<std::vector<v1::Job>> Store::list(std::int64_t after_id, int limit, v1::Job::State state) {
+StatusOr<std::vector<v1::Job>> Store::list(std::int64_t after_id, int limit, v1::Job::State state,
+                                           const std::string* owner) {
   Reader r = reader();
   if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
   const std::string sql = std::string("SELECT ") + kJobColumns +
-                          " FROM jobs WHERE id > ? AND (? = 0 OR state = ?)" + " ORDER BY id LIMIT ?";
+                          " FROM jobs WHERE id > ? AND (? = 0 OR state = ?)" +
+                          (owner ? " AND owner = ?5" : "") + " ORDER BY id LIMIT ?4";
   Stmt stmt(r.get(), sql.c_str());
   stmt.bind(1, after_id).bind(2, static_cast<int>(state)).bind(3, static_cast<int>(state)).bind(4, limit);
+  if (owner) stmt.bind(5, *owner);
   std::vector<v1::Job> jobs;
   int rc;
   while ((rc = stmt.step()) == SQLITE_ROW) jobs.push_back(job_from_row(stmt));
@@ -753,6 +786,86 @@ StatusOr<LeaseCheck> Store::check_lease(std::int64_t job_id, const std::string& 
   Reader r = reader();
   if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
   return lease_state(r.get(), job_id, lease_token);
+}
+
+// --- ownership and API tokens ---
+
+StatusOr<std::string> Store::job_owner(std::int64_t job_id) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  Stmt stmt(r.get(), "SELECT owner FROM jobs WHERE id = ?");
+  stmt.bind(1, job_id);
+  const int rc = stmt.step();
+  if (rc == SQLITE_DONE) return Status(StatusCode::kNotFound, "job " + job_name(job_id) + " not found");
+  if (rc != SQLITE_ROW) return sqlite_error(r.get(), "owner");
+  return stmt.text(0);
+}
+
+StatusOr<std::int64_t> Store::add_token(const std::string& user, const std::string& role,
+                                        const std::string& token_hash, std::int64_t now_ms) {
+  std::lock_guard lock(write_mutex_);
+  Stmt insert(writer_, "INSERT INTO tokens (user, role, hash, create_ms) VALUES (?, ?, ?, ?) RETURNING id");
+  insert.bind(1, user).bind(2, role).bind(3, token_hash).bind(4, now_ms);
+  if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert token");
+  const std::int64_t id = insert.int64(0);
+  insert.step();
+  return id;
+}
+
+namespace {
+
+constexpr const char* kTokenColumns = "id, user, role, create_ms, COALESCE(revoke_ms, 0)";
+
+TokenRecord token_from_row(const Stmt& row) {
+  return TokenRecord{row.int64(0), row.text(1), row.text(2), row.int64(3), row.int64(4)};
+}
+
+}  // namespace
+
+StatusOr<std::optional<TokenRecord>> Store::find_token(const std::string& token_hash) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  const std::string sql = std::string("SELECT ") + kTokenColumns + " FROM tokens WHERE hash = ?";
+  Stmt stmt(r.get(), sql.c_str());
+  stmt.bind(1, token_hash);
+  const int rc = stmt.step();
+  if (rc == SQLITE_DONE) return std::optional<TokenRecord>();
+  if (rc != SQLITE_ROW) return sqlite_error(r.get(), "find token");
+  return std::optional<TokenRecord>(token_from_row(stmt));
+}
+
+StatusOr<std::vector<TokenRecord>> Store::list_tokens() {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  const std::string sql = std::string("SELECT ") + kTokenColumns + " FROM tokens ORDER BY id";
+  Stmt stmt(r.get(), sql.c_str());
+  std::vector<TokenRecord> tokens;
+  int rc;
+  while ((rc = stmt.step()) == SQLITE_ROW) tokens.push_back(token_from_row(stmt));
+  if (rc != SQLITE_DONE) return sqlite_error(r.get(), "list tokens");
+  return tokens;
+}
+
+StatusOr<int> Store::revoke_tokens(std::int64_t id, const std::string& user, std::int64_t now_ms) {
+  std::lock_guard lock(write_mutex_);
+  Stmt update(writer_, id > 0 ? "UPDATE tokens SET revoke_ms = ?1 WHERE id = ?2 AND revoke_ms IS NULL"
+                              : "UPDATE tokens SET revoke_ms = ?1 WHERE user = ?3 AND revoke_ms IS NULL");
+  update.bind(1, now_ms);
+  if (id > 0) {
+    update.bind(2, id);
+  } else {
+    update.bind(3, user);
+  }
+  if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "revoke");
+  return sqlite3_changes(writer_);
+}
+
+std::int64_t Store::count_tokens(bool include_revoked) {
+  Reader r = reader();
+  if (!r.get()) return -1;
+  Stmt stmt(r.get(), include_revoked ? "SELECT COUNT(*) FROM tokens"
+                                     : "SELECT COUNT(*) FROM tokens WHERE revoke_ms IS NULL");
+  return stmt.step() == SQLITE_ROW ? stmt.int64(0) : -1;
 }
 
 }  // namespace cellflow::server

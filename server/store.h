@@ -2,7 +2,9 @@
 //
 // Tables: jobs (one row per job, with its lease), events (job_id, seq,
 // attempt, kind, sample_index, payload = a serialized cellflow.v1.JobEvent),
-// schema_version (migrated on open). Every state change is written in one
+// schema_version (migrated on open), tokens (hashed API tokens; version 2,
+// which also gives every job an owner: see server/README.md,
+// "Authentication"). Every state change is written in one
 // transaction together with its event, so a crash loses nothing that was
 // acknowledged. Writers take BEGIN IMMEDIATE (a deferred transaction that
 // upgrades to a writer ignores the busy timeout).
@@ -58,6 +60,16 @@ struct Claim {
   int last_delivered_sample_index = -1;
 };
 
+// An API token as the store keeps it: never the token, only its SHA-256.
+struct TokenRecord {
+  std::int64_t id = 0;
+  std::string user;
+  std::string role;  // "user", "admin" or "worker"
+  std::int64_t create_ms = 0;
+  std::int64_t revoke_ms = 0;  // 0: not revoked
+  bool revoked() const { return revoke_ms != 0; }
+};
+
 struct ReportOutcome {
   LeaseCheck lease = LeaseCheck::kLost;
   std::int64_t sequence = 0;  // the event's sequence; 0 when nothing was appended
@@ -65,7 +77,7 @@ struct ReportOutcome {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
 
   static StatusOr<std::unique_ptr<Store>> open(const StoreOptions& options);
   ~Store();
@@ -74,18 +86,22 @@ class Store {
 
   int schema_version();
 
-  // Queues a job with its QUEUED event. A non-empty request_id that is
-  // already known returns that job and existed = true.
+  // Queues a job with its QUEUED event, owned by `owner`. A non-empty
+  // request_id that `owner` already used returns that job and existed = true
+  // (request ids are per owner).
   struct Submitted {
     v1::Job job;
     bool existed = false;
   };
   StatusOr<Submitted> submit(const v1::JobSpec& spec, const std::string& request_id,
-                             std::int64_t estimated_memory_bytes, std::int64_t now_ms);
+                             std::int64_t estimated_memory_bytes, std::int64_t now_ms,
+                             const std::string& owner = "");
 
   StatusOr<v1::Job> get(std::int64_t job_id);
-  // Jobs with id > after_id, oldest first, at most `limit`; state 0 = any.
-  StatusOr<std::vector<v1::Job>> list(std::int64_t after_id, int limit, v1::Job::State state);
+  // Jobs with id > after_id, oldest first, at most `limit`; state 0 = any;
+  // owner null = every owner's.
+  StatusOr<std::vector<v1::Job>> list(std::int64_t after_id, int limit, v1::Job::State state,
+                                      const std::string* owner = nullptr);
   std::int64_t count(v1::Job::State state);
 
   // QUEUED or RUNNING -> CANCELLED (clears the lease); a cancelled job is
@@ -134,6 +150,19 @@ class Store {
 
   // Lease state as the fence sees it (for acks).
   StatusOr<LeaseCheck> check_lease(std::int64_t job_id, const std::string& lease_token);
+
+  // --- ownership and API tokens (server/auth.h) ---
+  // The identity that submitted the job ("" for jobs older than schema 2).
+  StatusOr<std::string> job_owner(std::int64_t job_id);
+  // Stores a token's hash; returns its id.
+  StatusOr<std::int64_t> add_token(const std::string& user, const std::string& role,
+                                   const std::string& token_hash, std::int64_t now_ms);
+  StatusOr<std::optional<TokenRecord>> find_token(const std::string& token_hash);
+  StatusOr<std::vector<TokenRecord>> list_tokens();
+  // Revokes token `id` (id > 0) or every token of `user`; returns how many
+  // were revoked now.
+  StatusOr<int> revoke_tokens(std::int64_t id, const std::string& user, std::int64_t now_ms);
+  std::int64_t count_tokens(bool include_revoked = false);
 
  private:
   explicit Store(StoreOptions options);

@@ -8,6 +8,8 @@
 
 #include <algorithm>
 
+extern char** environ;
+
 namespace cellflow::server {
 
 WorkerPool::WorkerPool(boost::asio::io_context& io, WorkerPoolOptions options)
@@ -41,6 +43,20 @@ void WorkerPool::spawn(std::size_t index) {
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
+  // The environment of the server without the worker's own settings, plus
+  // the credential (the local workers dial a private plaintext socket).
+  std::vector<std::string> env_strings;
+  for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
+    const std::string entry = *e;
+    const std::string name = entry.substr(0, entry.find('='));
+    if (name == "CELLFLOW_WORKER_TOKEN" || name == "CELLFLOW_SERVER" || name.rfind("CELLFLOW_TLS_", 0) == 0)
+      continue;
+    env_strings.push_back(entry);
+  }
+  if (!options_.worker_token.empty()) env_strings.push_back("CELLFLOW_WORKER_TOKEN=" + options_.worker_token);
+  std::vector<char*> envp;
+  for (std::string& e : env_strings) envp.push_back(e.data());
+  envp.push_back(nullptr);
 
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
@@ -56,7 +72,7 @@ void WorkerPool::spawn(std::size_t index) {
     sigset_t none;
     sigemptyset(&none);
     ::sigprocmask(SIG_SETMASK, &none, nullptr);
-    ::execv(argv[0], argv.data());
+    ::execve(argv[0], argv.data(), envp.data());
     ::_exit(127);
   }
   slot.pid = pid;

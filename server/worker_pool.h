@@ -21,8 +21,11 @@ namespace cellflow::server {
 
 struct WorkerPoolOptions {
   int count = 0;
-  std::string worker_path;              // the cellflow-worker executable
-  std::string server_address;           // what the workers dial, host:port
+  std::string worker_path;     // the cellflow-worker executable
+  std::string server_address;  // what the workers dial, host:port or unix-abstract:NAME
+  // The workers' credential, passed in their environment as
+  // CELLFLOW_WORKER_TOKEN (never on the command line, which ps shows).
+  std::string worker_token;
   std::vector<std::string> extra_args;  // appended to every worker's command line
   std::chrono::milliseconds restart_delay{500};
   std::chrono::milliseconds max_restart_delay{30000};

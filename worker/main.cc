@@ -16,7 +16,8 @@ int main(int argc, char** argv) {
   if (const char* env = std::getenv("CELLFLOW_SERVER")) options.server_address = env;
   std::string log_level = "info";
   CLI::App app{"cellflow-worker: runs cellflow jobs leased from a cellflow-server"};
-  app.add_option("--server", options.server_address, "server address host:port (env CELLFLOW_SERVER)")
+  app.add_option("--server", options.server_address,
+                 "the server's worker listener, host:port or unix:PATH (env CELLFLOW_SERVER)")
       ->capture_default_str();
   app.add_option("--name", options.name, "worker name; the worker id is name@host:pid")
       ->capture_default_str();
@@ -31,9 +32,41 @@ int main(int argc, char** argv) {
                  "testing aid: pause after each load point")
       ->capture_default_str();
   app.add_flag("--keep-results", options.keep_results, "keep the local copy of uploaded results");
+  std::string token_file, tls_ca, tls_cert, tls_key;
+  app.add_option("--token-file", token_file,
+                 "file holding the worker token, mode 0600 (default: env CELLFLOW_WORKER_TOKEN)");
+  app.add_option("--tls-ca", tls_ca,
+                 "CA certificate (PEM) of the server's certificate: use TLS (env CELLFLOW_TLS_CA)");
+  app.add_option("--tls-cert", tls_cert, "client certificate (PEM) for mTLS (env CELLFLOW_TLS_CERT)");
+  app.add_option("--tls-key", tls_key, "client key (PEM) for mTLS (env CELLFLOW_TLS_KEY)");
+  app.add_option("--tls-server-name", options.channel.tls_server_name,
+                 "name to check the server's certificate against (default: the host of --server)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::from_str(log_level));
+
+  // The credential never travels on the command line (ps shows it): a file
+  // of mode 0600 or the environment.
+  auto env = [](const char* name) -> std::string {
+    const char* value = std::getenv(name);
+    return value ? value : "";
+  };
+  if (!token_file.empty()) {
+    if (auto s = cellflow::rpc::read_secret_file(token_file, &options.channel.bearer_token); !s.ok()) {
+      spdlog::error("{}", s.message());
+      return 1;
+    }
+  } else {
+    options.channel.bearer_token = env("CELLFLOW_WORKER_TOKEN");
+  }
+  const bool tls_flags = !tls_ca.empty() || !tls_cert.empty();
+  if (auto s = cellflow::rpc::load_tls_files(tls_flags ? tls_ca : env("CELLFLOW_TLS_CA"),
+                                             tls_flags ? tls_cert : env("CELLFLOW_TLS_CERT"),
+                                             tls_flags ? tls_key : env("CELLFLOW_TLS_KEY"), &options.channel);
+      !s.ok()) {
+    spdlog::error("{}", s.message());
+    return 1;
+  }
 
   // SIGTERM/SIGINT: stop the running job, hand it back, exit 0. The signals
   // are blocked in every thread and taken by sigwait in one.
@@ -43,7 +76,8 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  cellflow::worker::Worker worker(options, cellflow::worker::Worker::connect(options.server_address));
+  cellflow::worker::Worker worker(options,
+                                  cellflow::worker::Worker::connect(options.server_address, options.channel));
   std::thread([&worker, signals] {
     int received = 0;
     sigwait(&signals, &received);

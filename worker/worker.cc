@@ -31,12 +31,13 @@ using rpc::seconds_to_ms;
 
 }  // namespace
 
-std::unique_ptr<v1::WorkerService::StubInterface> Worker::connect(const std::string& address) {
+std::unique_ptr<v1::WorkerService::StubInterface> Worker::connect(const std::string& address,
+                                                                  const rpc::ChannelOptions& channel) {
   // The channel reconnects quickly after a server restart (rpc::ChannelOptions).
-  return v1::WorkerService::NewStub(rpc::make_channel(address));
+  return v1::WorkerService::NewStub(rpc::make_channel(address, channel));
 }
 
-Worker::Worker(WorkerOptions options) : Worker(options, connect(options.server_address)) {}
+Worker::Worker(WorkerOptions options) : Worker(options, connect(options.server_address, options.channel)) {}
 
 Worker::Worker(WorkerOptions options, std::unique_ptr<v1::WorkerService::StubInterface> stub)
     : options_(std::move(options)), stub_(std::move(stub)) {
@@ -82,6 +83,13 @@ int Worker::run() {
     const auto asked = Clock::now();
     rpc::set_deadline(context, seconds_to_ms(request.wait_s() + 10.0, 10s));
     const grpc::Status status = stub_->LeaseJob(&context, request, &response);
+    if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
+        status.error_code() == grpc::StatusCode::PERMISSION_DENIED) {
+      // Retrying cannot help: the credential is missing, wrong or revoked.
+      spdlog::error("LeaseJob refused: {} (set CELLFLOW_WORKER_TOKEN or --token-file to a worker token)",
+                    status.error_message());
+      return 2;
+    }
     if (!status.ok()) {
       if (status.error_code() != grpc::StatusCode::UNAVAILABLE &&
           status.error_code() != grpc::StatusCode::DEADLINE_EXCEEDED) {

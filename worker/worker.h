@@ -14,6 +14,7 @@
 
 #include "cellflow/v1/worker.grpc.pb.h"
 #include "jobs/registry.h"
+#include "rpc/rpc.h"
 
 namespace cellflow::worker {
 
@@ -27,17 +28,22 @@ struct WorkerOptions {
   int threads = 0;                   // OpenMP threads for the physics; 0: default
   int debug_delay_per_point_ms = 0;  // testing aid, see RunOptions
   bool keep_results = false;         // keep the local copy of uploaded results
+  // The worker credential (bearer_token) and TLS of the channel to the
+  // server's worker listener; see worker/main.cc for where they come from.
+  rpc::ChannelOptions channel;
 };
 
 class Worker {
  public:
-  // Connects to options.server_address: Worker(options, connect(options.server_address)).
+  // Connects to options.server_address with options.channel:
+  // Worker(options, connect(options.server_address, options.channel)).
   explicit Worker(WorkerOptions options);
   // Makes every call through `stub` (which must not be null); options.server_address is
   // then only named in the logs.
   Worker(WorkerOptions options, std::unique_ptr<v1::WorkerService::StubInterface> stub);
   // The production stub: v1::WorkerService::NewStub over rpc::make_channel(address).
-  static std::unique_ptr<v1::WorkerService::StubInterface> connect(const std::string& address);
+  static std::unique_ptr<v1::WorkerService::StubInterface> connect(const std::string& address,
+                                                                   const rpc::ChannelOptions& channel = {});
 
   // Runs until stop() or the max_jobs / idle_exit_s limits; returns the exit code.
   int run();

@@ -9,8 +9,14 @@
 //   3. Service overhead per job: wall time submit -> SUCCEEDED through the
 //      service (one warm local worker) minus run_compression in-process for
 //      the same spec (median of several runs).
+//   4. Latency of one GetJob call (sequential, one client), whose difference
+//      between the modes is the cost of authentication (and TLS) per call.
 //
-//   bench_service [--submits N] [--events N] [--watchers N] [--overhead-runs N]
+// 1, 2 and 4 run in three modes: "none" (--auth none, plaintext), "token"
+// (bearer tokens checked on every call, plaintext loopback) and "token+tls"
+// (tokens over TLS with a CA and a server certificate made here by openssl).
+//
+//   bench_service [--submits N] [--events N] [--watchers N] [--overhead-runs N] [--get-calls N]
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -20,9 +26,11 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -30,8 +38,11 @@
 
 #include "cellflow/v1/worker.grpc.pb.h"
 #include "client/rpc_client.h"
-#include "physics/scenes/quasi_static/quasi_static.h"
 #include "jobs/job_spec.h"
+#include "physics/scenes/quasi_static/quasi_static.h"
+#include "rpc/rpc.h"
+#include "server/auth.h"
+#include "server/store.h"
 
 namespace {
 
@@ -43,12 +54,84 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+// How the server is secured in one run of the benchmark.
+struct Mode {
+  std::string name;          // none, token, token+tls
+  bool tokens = false;       // --auth token (else --auth none)
+  bool tls = false;          // --tls-cert/--tls-key from cert_dir
+  fs::path cert_dir;         // ca.pem, server.pem, server.key
+  std::string user_token;    // set by Server
+  std::string worker_token;  // set by Server
+  std::string ca_pem;
+};
+
+Mode make_mode(const std::string& name, bool tokens = false, bool tls = false,
+               const fs::path& cert_dir = {}) {
+  Mode mode;
+  mode.name = name;
+  mode.tokens = tokens;
+  mode.tls = tls;
+  mode.cert_dir = cert_dir;
+  return mode;
+}
+
+std::string command_output(const std::string& command) {
+  std::string out;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return out;
+  char buffer[256];
+  std::size_t n;
+  while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+  ::pclose(pipe);
+  while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
+  return out;
+}
+
+// A CA and a server certificate for localhost / 127.0.0.1 (EC P-256).
+bool make_certificates(const fs::path& dir) {
+  fs::create_directories(dir);
+  const std::string d = dir.string();
+  const std::string ec = " -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes";
+  std::ofstream(dir / "san.ext") << "subjectAltName=DNS:localhost,IP:127.0.0.1\nbasicConstraints=CA:FALSE\n";
+  for (const std::string& command :
+       {"openssl req -x509" + ec + " -days 2 -subj /CN=bench-ca -keyout " + d + "/ca.key -out " + d +
+            "/ca.pem",
+        "openssl req" + ec + " -subj /CN=localhost -keyout " + d + "/server.key -out " + d + "/server.csr",
+        "openssl x509 -req -in " + d + "/server.csr -CA " + d + "/ca.pem -CAkey " + d +
+            "/ca.key -CAcreateserial -days 2 -extfile " + d + "/san.ext -out " + d + "/server.pem"}) {
+    if (std::system((command + " >/dev/null 2>&1").c_str()) != 0) {
+      std::printf("cannot make certificates: %s\n", command.c_str());
+      return false;
+    }
+  }
+  return true;
+}
+
 struct Server {
   pid_t pid = -1;
   std::string address;
-  Server(const fs::path& dir, int workers, std::vector<std::string> extra = {}) {
+  std::string worker_address;
+  Server(const fs::path& dir, int workers, std::vector<std::string> extra = {}, Mode* mode = nullptr) {
     const std::string port_file = (dir / "port").string();
+    const std::string worker_port_file = (dir / "worker-port").string();
+    const std::string data = (dir / "data").string();
+    if (mode && mode->tokens) {
+      const std::string create = std::string(CELLFLOW_SERVER_EXE) + " token create --data-dir " + data;
+      mode->user_token = command_output(create + " --user bench");
+      mode->worker_token = command_output(create + " --worker --user bench-worker");
+    }
+    if (!mode || !mode->tokens) extra.insert(extra.end(), {"--auth", "none"});
+    if (mode && mode->tls) {
+      const std::string certs = mode->cert_dir.string();
+      extra.insert(extra.end(), {"--tls-cert", certs + "/server.pem", "--tls-key", certs + "/server.key"});
+      std::ifstream in(mode->cert_dir / "ca.pem");
+      mode->ca_pem.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
     std::vector<std::string> args = {CELLFLOW_SERVER_EXE,
+                                     "--worker-listen",
+                                     "127.0.0.1:0",
+                                     "--worker-port-file",
+                                     worker_port_file,
                                      "--listen",
                                      "127.0.0.1:0",
                                      "--data-dir",
@@ -73,11 +156,13 @@ struct Server {
       ::execv(argv[0], argv.data());
       ::_exit(127);
     }
-    for (int i = 0; i < 1000 && !fs::exists(port_file); ++i)
+    for (int i = 0; i < 1000 && !(fs::exists(port_file) && fs::exists(worker_port_file)); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    int port = 0;
+    int port = 0, worker_port = 0;
     std::ifstream(port_file) >> port;
+    std::ifstream(worker_port_file) >> worker_port;
     address = "127.0.0.1:" + std::to_string(port);
+    worker_address = "127.0.0.1:" + std::to_string(worker_port);
   }
   ~Server() {
     ::kill(pid, SIGTERM);
@@ -97,24 +182,27 @@ v1::JobSpec small_compression(int load_points, int vertices) {
   return spec;
 }
 
-client::ClientOptions client_options(const std::string& address) {
+client::ClientOptions client_options(const std::string& address, const Mode& mode) {
   client::ClientOptions options;
   options.server = address;
   options.timeout_s = 30;
+  options.token = mode.user_token;
+  options.tls = mode.tls;
+  options.tls_ca_pem = mode.ca_pem;
   return options;
 }
 
-void bench_submit(const fs::path& dir, int total, int clients) {
-  const fs::path sub = dir / ("submit" + std::to_string(clients));
+void bench_submit(const fs::path& dir, int total, int clients, Mode mode) {
+  const fs::path sub = dir / ("submit" + std::to_string(clients) + "-" + mode.name);
   fs::create_directories(sub);
-  Server server(sub, 0);
+  Server server(sub, 0, {}, &mode);
   const v1::JobSpec spec = small_compression(5, 300);
   std::atomic<int> next{0}, errors{0};
   std::vector<std::thread> threads;
   const auto start = Clock::now();
   for (int c = 0; c < clients; ++c) {
     threads.emplace_back([&] {
-      client::Client client(client_options(server.address));  // one channel per client
+      client::Client client(client_options(server.address, mode));  // one channel per client
       while (next.fetch_add(1) < total) {
         v1::SubmitJobRequest request;
         *request.mutable_spec() = spec;
@@ -125,15 +213,77 @@ void bench_submit(const fs::path& dir, int total, int clients) {
   }
   for (auto& t : threads) t.join();
   const double elapsed = seconds_since(start);
-  std::printf("SubmitJob, %d client(s): %d jobs in %.3f s = %.0f jobs/s (%d errors)\n", clients, total,
-              elapsed, total / elapsed, errors.load());
+  std::printf("[%s] SubmitJob, %d client(s): %d jobs in %.3f s = %.0f jobs/s (%d errors)\n",
+              mode.name.c_str(), clients, total, elapsed, total / elapsed, errors.load());
 }
 
-void bench_watchers(const fs::path& dir, int events, int watchers) {
-  const fs::path sub = dir / "watch";
+// Sequential GetJob calls of one client: the latency of a small unary call.
+void bench_get_latency(const fs::path& dir, int calls, Mode mode) {
+  const fs::path sub = dir / ("get-" + mode.name);
   fs::create_directories(sub);
-  Server server(sub, 0);
-  client::Client client(client_options(server.address));
+  Server server(sub, 0, {}, &mode);
+  client::Client client(client_options(server.address, mode));
+  v1::SubmitJobRequest submit;
+  *submit.mutable_spec() = small_compression(5, 300);
+  v1::SubmitJobResponse submitted;
+  if (!client.submit(submit, &submitted).ok()) {
+    std::printf("[%s] GetJob: submit failed\n", mode.name.c_str());
+    return;
+  }
+  v1::Job job;
+  for (int i = 0; i < 50; ++i) client.get(submitted.job().id(), &job);  // warm the connection
+  // The median of 5 rounds: the machine is shared, single rounds are noisy.
+  int errors = 0;
+  std::vector<double> per_call;
+  for (int round = 0; round < 5; ++round) {
+    const auto start = Clock::now();
+    for (int i = 0; i < calls; ++i) errors += !client.get(submitted.job().id(), &job).ok();
+    per_call.push_back(1e6 * seconds_since(start) / calls);
+  }
+  std::sort(per_call.begin(), per_call.end());
+  std::printf(
+      "[%s] GetJob, 1 client, sequential: median of 5 x %d calls = %.1f us/call (min %.1f; %d errors)\n",
+      mode.name.c_str(), calls, per_call[2], per_call[0], errors);
+}
+
+// The server's own cost of checking a token, in process: SHA-256 of the
+// token and the lookup of its hash in SQLite (server/auth.h), per call.
+void bench_token_check(const fs::path& dir, int calls) {
+  const fs::path sub = dir / "check";
+  fs::create_directories(sub);
+  server::StoreOptions options;
+  options.path = (sub / "cellflow.sqlite").string();
+  auto store = server::Store::open(options);
+  auto token = server::generate_token();
+  if (!store.ok() || !token.ok()) return;
+  for (int i = 0; i < 100; ++i) {  // a table with some tokens in it
+    auto other = server::generate_token();
+    (void)(*store)->add_token("user" + std::to_string(i), "user", server::hash_token(*other), 0);
+  }
+  (void)(*store)->add_token("bench", "user", server::hash_token(*token), 0);
+  server::Authenticator authenticator((*store).get(), server::AuthMode::kToken);
+  const std::string header = "Bearer " + *token;
+  int refused = 0;
+  const auto start = Clock::now();
+  for (int i = 0; i < calls; ++i) {
+    refused += !authenticator.check(server::Authenticator::Api::kPublic, header).status.ok();
+  }
+  const double elapsed = seconds_since(start);
+  const auto hash_start = Clock::now();
+  std::size_t sink = 0;
+  for (int i = 0; i < calls; ++i) sink += server::hash_token(header).size();
+  const double hashing = seconds_since(hash_start);
+  std::printf(
+      "Token check in the server (SHA-256 + SQLite lookup, %d calls): %.2f us/call, of which SHA-256 "
+      "%.2f us (%d refused, %zu)\n",
+      calls, 1e6 * elapsed / calls, 1e6 * hashing / calls, refused, sink % 2);
+}
+
+void bench_watchers(const fs::path& dir, int events, int watchers, Mode mode) {
+  const fs::path sub = dir / ("watch-" + mode.name);
+  fs::create_directories(sub);
+  Server server(sub, 0, {}, &mode);
+  client::Client client(client_options(server.address, mode));
   v1::SubmitJobRequest submit;
   *submit.mutable_spec() = small_compression(events, 300);
   v1::SubmitJobResponse submitted;
@@ -141,8 +291,11 @@ void bench_watchers(const fs::path& dir, int events, int watchers) {
   const std::string job_id = submitted.job().id();
 
   // This program is the job's worker.
-  auto worker =
-      v1::WorkerService::NewStub(grpc::CreateChannel(server.address, grpc::InsecureChannelCredentials()));
+  rpc::ChannelOptions channel;
+  channel.bearer_token = mode.worker_token;
+  channel.tls = mode.tls;
+  channel.tls_ca_pem = mode.ca_pem;
+  auto worker = v1::WorkerService::NewStub(rpc::make_channel(server.worker_address, channel));
   v1::LeaseJobRequest lease_request;
   lease_request.set_worker_id("bench");
   lease_request.set_wait_s(5);
@@ -160,7 +313,7 @@ void bench_watchers(const fs::path& dir, int events, int watchers) {
   std::mutex start_mutex;
   for (int w = 0; w < watchers; ++w) {
     threads.emplace_back([&, w] {
-      client::Client c(client_options(server.address));
+      client::Client c(client_options(server.address, mode));
       bool counted = false;
       c.watch(job_id, 0, [&](const v1::JobEvent& event) {
         if (!counted) {
@@ -213,9 +366,10 @@ void bench_watchers(const fs::path& dir, int events, int watchers) {
   client.cancel(job_id, &cancelled);
   for (auto& t : threads) t.join();
   std::printf(
-      "WatchJob fan-out: %d samples reported in %.3f s (%.0f events/s stored); %d watchers received all "
+      "[%s] WatchJob fan-out: %d samples reported in %.3f s (%.0f events/s stored); %d watchers received all "
       "in %.3f s = %.0f events/s delivered\n",
-      events, reported, events / reported, watchers, last, static_cast<double>(events) * watchers / last);
+      mode.name.c_str(), events, reported, events / reported, watchers, last,
+      static_cast<double>(events) * watchers / last);
 }
 
 void bench_overhead(const fs::path& dir, int runs) {
@@ -223,8 +377,9 @@ void bench_overhead(const fs::path& dir, int runs) {
   fs::create_directories(sub);
   // One OpenMP thread on both sides: the figure is the service's overhead,
   // not OpenMP contention on a busy machine.
-  Server server(sub, 1, {"--worker-arg=--threads=1"});
-  client::Client client(client_options(server.address));
+  Mode mode = make_mode("none");
+  Server server(sub, 1, {"--worker-arg=--threads=1"}, &mode);
+  client::Client client(client_options(server.address, mode));
   const v1::JobSpec spec = small_compression(5, 300);
   auto params = jobs::to_params(spec.compression());
   if (!params.ok()) {
@@ -277,7 +432,7 @@ void bench_overhead(const fs::path& dir, int runs) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int submits = 2000, events = 2000, watchers = 50, overhead_runs = 7;
+  int submits = 2000, events = 2000, watchers = 50, overhead_runs = 7, get_calls = 2000;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
     const int value = std::atoi(argv[i + 1]);
@@ -285,12 +440,19 @@ int main(int argc, char** argv) {
     if (flag == "--events") events = value;
     if (flag == "--watchers") watchers = value;
     if (flag == "--overhead-runs") overhead_runs = value;
+    if (flag == "--get-calls") get_calls = value;
   }
   const fs::path dir = fs::temp_directory_path() / ("cellflow_bench_service_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  bench_submit(dir, submits, 1);
-  bench_submit(dir, submits, 8);
-  bench_watchers(dir, events, watchers);
+  std::vector<Mode> modes = {make_mode("none"), make_mode("token", true)};
+  if (make_certificates(dir / "certs")) modes.push_back(make_mode("token+tls", true, true, dir / "certs"));
+  for (const Mode& mode : modes) {
+    bench_submit(dir, submits, 1, mode);
+    bench_submit(dir, submits, 8, mode);
+    bench_watchers(dir, events, watchers, mode);
+    bench_get_latency(dir, get_calls, mode);
+  }
+  bench_token_check(dir, 20000);
   bench_overhead(dir, overhead_runs);
   fs::remove_all(dir);
   return 0;

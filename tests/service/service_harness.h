@@ -1,6 +1,12 @@
 // Integration-test harness: real cellflow-server and cellflow-worker
 // processes on 127.0.0.1 with an ephemeral port and a SQLite file in a
 // temporary directory. Executable paths come from CMake (compile definitions).
+//
+// Authentication is on (--auth token): before the first start the harness
+// creates a user token and a worker token with the real
+// `cellflow-server token create`, gives the user token to client_ and, via
+// CELLFLOW_TOKEN, to the CLI runs of the tests; workers started here dial the
+// worker listener (--worker-listen 127.0.0.1:0) with CELLFLOW_WORKER_TOKEN.
 #pragma once
 
 #include <fcntl.h>
@@ -23,6 +29,8 @@
 #include <vector>
 
 #include "client/rpc_client.h"
+
+extern char** environ;
 #include "tests/io/h5_test_util.h"  // run_command, read_text
 
 namespace cellflow::testing {
@@ -30,14 +38,29 @@ namespace cellflow::testing {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-// A child process with stdout and stderr in `log_path`.
+// A child process with stdout and stderr in `log_path`; `env` is added to
+// (or replaces entries of) the environment of this process.
 class Process {
  public:
-  Process(const std::vector<std::string>& argv, const std::string& log_path) : log_path_(log_path) {
+  Process(const std::vector<std::string>& argv, const std::string& log_path,
+          const std::vector<std::string>& env = {})
+      : log_path_(log_path) {
     std::vector<std::string> args = argv;
     std::vector<char*> raw;
     for (auto& a : args) raw.push_back(a.data());
     raw.push_back(nullptr);
+    std::vector<std::string> env_strings;
+    for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
+      const std::string entry = *e;
+      bool replaced = false;
+      for (const auto& add : env)
+        replaced |= add.substr(0, add.find('=') + 1) == entry.substr(0, add.find('=') + 1);
+      if (!replaced) env_strings.push_back(entry);
+    }
+    env_strings.insert(env_strings.end(), env.begin(), env.end());
+    std::vector<char*> envp;
+    for (auto& e : env_strings) envp.push_back(e.data());
+    envp.push_back(nullptr);
     pid_ = ::fork();
     if (pid_ == 0) {
       const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
@@ -45,7 +68,7 @@ class Process {
         ::dup2(fd, STDOUT_FILENO);
         ::dup2(fd, STDERR_FILENO);
       }
-      ::execv(raw[0], raw.data());
+      ::execve(raw[0], raw.data(), envp.data());
       ::_exit(127);
     }
   }
@@ -132,10 +155,45 @@ class ServiceTest : public ::testing::Test {
     if (!HasFailure()) fs::remove_all(dir_);
   }
 
+  // `cellflow-server token create --user USER FLAGS` on this test's database;
+  // returns the token (the command's only output).
+  std::string create_token(const std::string& user, const std::string& flags = "") {
+    int code = 0;
+    std::string out = run_command(std::string(CELLFLOW_SERVER_EXE) + " token create --user " + user + " " +
+                                      flags + " --data-dir " + (dir_ / "data").string(),
+                                  &code);
+    EXPECT_EQ(code, 0) << out;
+    while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
+    EXPECT_EQ(out.size(), 43u) << "a token is 32 bytes in base64url: " << out;
+    return out;
+  }
+
+  // Options of a client of this server with `token` (and the TLS settings of this test).
+  client::ClientOptions client_options(const std::string& token) const {
+    client::ClientOptions options = client_base_;
+    options.server = address_;
+    options.timeout_s = 10;
+    options.reconnect_s = 30;
+    options.token = token;
+    return options;
+  }
+
   // Starts the server on `port` (0: ephemeral) with `workers` local workers.
   void start_server(int workers, std::vector<std::string> extra = {}, int port = 0) {
     const std::string port_file = (dir_ / "port").string();
+    const std::string worker_port_file = (dir_ / "worker-port").string();
     fs::remove(port_file);
+    fs::remove(worker_port_file);
+    if (auth_ && token_.empty()) {
+      token_ = create_token("test-user");
+      worker_token_ = create_token("test-worker", "--worker");
+    }
+    // For the CLI runs of the tests (run_command inherits the environment).
+    if (auth_) {
+      ::setenv("CELLFLOW_TOKEN", token_.c_str(), 1);
+    } else {
+      ::unsetenv("CELLFLOW_TOKEN");
+    }
     std::vector<std::string> argv = {CELLFLOW_SERVER_EXE,
                                      "--listen",
                                      "127.0.0.1:" + std::to_string(port),
@@ -148,26 +206,36 @@ class ServiceTest : public ::testing::Test {
                                      "--worker-path",
                                      CELLFLOW_WORKER_EXE,
                                      "--log-level",
-                                     "debug"};
+                                     "debug",
+                                     "--worker-listen",
+                                     "127.0.0.1:0",
+                                     "--worker-port-file",
+                                     worker_port_file};
+    if (!auth_) argv.insert(argv.end(), {"--auth", "none"});
     argv.insert(argv.end(), extra.begin(), extra.end());
     server_ = std::make_unique<Process>(argv, (dir_ / "server.log").string());
-    ASSERT_TRUE(eventually([&] { return fs::exists(port_file); }, 20s)) << server_->log();
+    ASSERT_TRUE(eventually([&] { return fs::exists(port_file) && fs::exists(worker_port_file); }, 20s))
+        << server_->log();
     std::ifstream in(port_file);
     in >> port_;
     ASSERT_GT(port_, 0);
+    std::ifstream worker_in(worker_port_file);
+    worker_in >> worker_port_;
+    ASSERT_GT(worker_port_, 0);
     address_ = "127.0.0.1:" + std::to_string(port_);
-    client::ClientOptions options;
-    options.server = address_;
-    options.timeout_s = 10;
-    options.reconnect_s = 30;
-    client_ = std::make_unique<client::Client>(options);
+    worker_address_ = "127.0.0.1:" + std::to_string(worker_port_);
+    client_ = std::make_unique<client::Client>(client_options(token_));
   }
 
-  Process* start_worker(std::vector<std::string> extra = {}) {
-    std::vector<std::string> argv = {CELLFLOW_WORKER_EXE, "--server", address_, "--log-level", "debug"};
+  // A worker on the worker listener with the worker token (or `env`, e.g.
+  // no credential or another one).
+  Process* start_worker(std::vector<std::string> extra = {}, std::vector<std::string> env = {"default"}) {
+    std::vector<std::string> argv = {CELLFLOW_WORKER_EXE, "--server", worker_address_, "--log-level",
+                                     "debug"};
     argv.insert(argv.end(), extra.begin(), extra.end());
+    if (env.size() == 1 && env[0] == "default") env = {"CELLFLOW_WORKER_TOKEN=" + worker_token_};
     workers_.push_back(std::make_unique<Process>(
-        argv, (dir_ / ("worker" + std::to_string(workers_.size()) + ".log")).string()));
+        argv, (dir_ / ("worker" + std::to_string(workers_.size()) + ".log")).string(), env));
     return workers_.back().get();
   }
 
@@ -210,7 +278,13 @@ class ServiceTest : public ::testing::Test {
   std::unique_ptr<Process> server_;
   std::vector<std::unique_ptr<Process>> workers_;
   int port_ = 0;
-  std::string address_;
+  int worker_port_ = 0;
+  std::string address_;                // the public listener
+  std::string worker_address_;         // the worker listener
+  bool auth_ = true;                   // false: --auth none (set before start_server)
+  std::string token_;                  // the user token of client_ and of CELLFLOW_TOKEN
+  std::string worker_token_;           // the worker token of start_worker
+  client::ClientOptions client_base_;  // TLS settings of the clients (client_options)
   std::unique_ptr<client::Client> client_;
 };
 

@@ -42,6 +42,13 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 86400.0));
   app.add_flag("--sqlite-synchronous-full", options.sqlite_synchronous_full,
                "fsync every commit (survives power loss; default survives process crashes)");
+  app.add_option("--max-mesh-bytes", options.max_mesh_bytes, "largest mesh UploadMesh accepts")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
+  app.add_option("--max-run-time-s", options.max_run_time_s,
+                 "an attempt running longer loses its lease, heartbeats or not (0: no limit)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e9));
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::from_str(log_level));

@@ -54,6 +54,19 @@ StatusOr<std::unique_ptr<PreparedJob>> SceneRegistry::prepare(const v1::JobSpec&
     for (const SceneEntry& e : kScenes) names += (names.empty() ? "" : ", ") + std::string(e.name);
     return invalid_argument("scene: one of " + names + " must be set");
   }
+  // An uploaded mesh's bytes are filled in by the server or the worker that
+  // fetched them; without them the spec cannot run (and must not fall back to a sphere).
+  const google::protobuf::Message& scene = spec.GetReflection()->GetMessage(
+      spec, spec.GetDescriptor()->FindFieldByNumber(static_cast<int>(entry->scene_case)));
+  if (const auto* field = scene.GetDescriptor()->FindFieldByName("cell");
+      field != nullptr && field->message_type() == v1::CellSpec::descriptor()) {
+    const auto& cell = static_cast<const v1::CellSpec&>(scene.GetReflection()->GetMessage(scene, field));
+    if (!cell.mesh_sha256().empty() && cell.mesh_bytes().empty()) {
+      return invalid_argument(std::string(entry->name) +
+                              ".cell.mesh_sha256: an uploaded mesh runs through the service, which "
+                              "fetches its bytes (a local run reads cell.mesh_file)");
+    }
+  }
   conversions_.fetch_add(1, std::memory_order_relaxed);
   return entry->prepare(spec);
 }

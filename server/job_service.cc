@@ -390,7 +390,7 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
     published(submitted->job);
     notifier_.queue_changed();
     spdlog::info("{} queued{}{}", submitted->job.id(),
-                 request.spec().name().empty() ? "" : " \"" + request.spec().name() + "\"",
+                 request.spec().name().empty() ? "" : " \"" + sanitize_text(request.spec().name(), 80) + "\"",
                  request.request_id().empty() ? "" : " (request " + request.request_id() + ")");
   }
   v1::SubmitJobResponse response;
@@ -510,6 +510,7 @@ Status JobService::download(const std::string& job_id,
 StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& request,
                                                  const std::function<bool()>& client_gone) {
   if (request.worker_id().empty()) return invalid_argument("worker_id: must not be empty");
+  if (request.worker_id().size() > 256) return invalid_argument("worker_id: at most 256 bytes");
   const double wait_s = std::clamp(request.wait_s(), 0.0, 30.0);
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<int>(wait_s * 1000));

@@ -561,7 +561,7 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
     if (rc != SQLITE_DONE) return sqlite_error(writer_, "renew");
     auto check = lease_state(writer_, job_id, lease_token);
     if (!check.ok()) return check.status();
-    return ReportOutcome{*check, 0};
+    return ReportOutcome{*check, 0, {}};
   }
   const int attempt = static_cast<int>(renew.int64(0));
   renew.step();
@@ -584,7 +584,7 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
     if (delivered) {
       // Already delivered (by this attempt's resend or an earlier attempt): keep the lease renewal only.
       if (Status s = txn.commit(); !s.ok()) return s;
-      return ReportOutcome{LeaseCheck::kValid, 0};
+      return ReportOutcome{LeaseCheck::kValid, 0, {}};
     }
   }
   if (event.has_progress()) {
@@ -597,7 +597,7 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
   auto seq = append_event_row(writer_, job_id, attempt, std::move(event), sample_index, now_ms);
   if (!seq.ok()) return seq.status();
   if (Status s = txn.commit(); !s.ok()) return s;
-  return ReportOutcome{LeaseCheck::kValid, *seq};
+  return ReportOutcome{LeaseCheck::kValid, *seq, {}};
 }
 
 namespace {

@@ -287,7 +287,7 @@ TEST_F(JobServiceTest, SubmitRefusesMeshFilePathsWithoutTouchingThem) {
   const fs::path directory = dir_ / "a-directory";
   fs::create_directories(directory);
   const auto started = std::chrono::steady_clock::now();
-  for (const std::string path :
+  for (const std::string& path :
        {std::string("/etc/passwd"), std::string("/proc/self/environ"), directory.string(), fifo.string(),
         std::string("/dev/zero"), std::string("/nonexistent/cell.msh")}) {
     v1::SubmitJobRequest request;

@@ -196,8 +196,9 @@ TEST_F(ServiceTest, SecondServerOnTheSameDataDirIsRefused) {
   EXPECT_EQ(get(submit(small_compression())).state(), v1::Job::QUEUED);  // the first serves on
 }
 
-// A server crash while a job runs, with its worker gone too (the hand-back
-// never reached the server): the attempt is not charged (--max-attempts 1).
+// A server crash while a job runs, and its worker stops meanwhile (the
+// hand-back never reaches the server, and the worker logs that it failed):
+// the attempt is not charged (--max-attempts 1).
 // Unfinished uploads of the crashed server are removed at start.
 TEST_F(ServiceTest, ServerCrashDoesNotChargeTheRunningAttempt) {
   const std::vector<std::string> options = {"--lease-ttl-s", "1", "--max-attempts", "1"};
@@ -209,8 +210,12 @@ TEST_F(ServiceTest, ServerCrashDoesNotChargeTheRunningAttempt) {
       eventually([&] { return get(id).state() == v1::Job::RUNNING && get(id).last_sequence() > 3; }, 30s));
   server_->signal(SIGKILL);
   server_->wait();
-  worker->signal(SIGKILL);
-  worker->wait();
+  // The worker stops while the server is down: its hand-back cannot arrive,
+  // and it says so instead of "handed back".
+  worker->signal(SIGTERM);
+  ASSERT_TRUE(worker->wait_for(20s));
+  EXPECT_NE(worker->log().find("hand-back failed"), std::string::npos) << worker->log();
+  EXPECT_EQ(worker->log().find("handed back"), std::string::npos) << worker->log();
   const fs::path stale = dir_ / "data" / "results" / "job-1.attempt-1.0123456789abcdef.h5.part";
   std::ofstream(stale) << "left behind";
   start_server(0, options, port);

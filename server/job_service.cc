@@ -563,12 +563,14 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
     }
     case v1::WorkerReport::kProgress: {
       const v1::Progress& p = report.progress();
-      if (!(p.fraction_done() >= 0.0 && p.fraction_done() <= 1.0)) {
+      // NaN fails both comparisons; rounding just outside [0, 1] is clamped below.
+      if (!(p.fraction_done() >= -1e-6 && p.fraction_done() <= 1.0 + 1e-6)) {
         refused = "progress.fraction_done: must lie in [0, 1]";
       } else if (!std::isfinite(p.elapsed_s()) || p.elapsed_s() < 0.0) {
         refused = "progress.elapsed_s: must be finite and >= 0";
       }
       *event.mutable_progress() = p;
+      event.mutable_progress()->set_fraction_done(std::clamp(p.fraction_done(), 0.0, 1.0));
       if (!std::isfinite(p.estimated_remaining_s()) || p.estimated_remaining_s() < 0.0) {
         event.mutable_progress()->set_estimated_remaining_s(-1.0);  // unknown
       }

@@ -81,7 +81,9 @@ struct CellFlags {
     app->add_option("--w", w, "Mooney-Rivlin weight w in [0, 1]; 1 = neo-Hookean (server default 1)");
     app->add_option("--target-vertex-count", target_vertex_count,
                     "mesh size, 200..20000 (server default 3000)");
-    app->add_option("--mesh-file", mesh_file, "Gmsh .msh v4 ASCII mesh instead of a generated sphere");
+    app->add_option(
+        "--mesh-file", mesh_file,
+        "Gmsh .msh v4 ASCII mesh instead of a generated sphere (uploaded; the spec names its hash)");
   }
   void fill(CLI::App* app, v1::CellSpec* cell) const {
     cell->set_radius_m(radius_m);
@@ -103,6 +105,30 @@ int watch(client::Client& client, const std::string& job_id, std::int64_t after,
   printer.finish();
   if (!status.ok()) return report_error(status, "watch " + job_id);
   return client::exit_code_for(printer.last_state());
+}
+
+// The server reads no file a spec names: a cell's mesh_file (from --mesh-file
+// or a JSON spec) is read here, uploaded, and replaced by its hash.
+int upload_mesh_file(client::Client& client, v1::JobSpec& spec) {
+  v1::CellSpec* cell = spec.has_compression()   ? spec.mutable_compression()->mutable_cell()
+                       : spec.has_indentation() ? spec.mutable_indentation()->mutable_cell()
+                       : spec.has_shear_flow()  ? spec.mutable_shear_flow()->mutable_cell()
+                                                : nullptr;
+  if (cell == nullptr || cell->mesh_file().empty()) return ExitCode::kExitOk;
+  std::ifstream in(cell->mesh_file(), std::ios::binary);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (!in && !in.eof()) {
+    std::fprintf(stderr, "cellflow: cannot read the mesh file %s\n", cell->mesh_file().c_str());
+    return ExitCode::kExitInvalidArgument;
+  }
+  v1::MeshRef ref;
+  const std::string name = std::filesystem::path(cell->mesh_file()).filename().string();
+  const grpc::Status status = client.upload_mesh(bytes.str(), name, &ref);
+  if (!status.ok()) return report_error(status, "upload mesh " + cell->mesh_file());
+  cell->clear_mesh_file();
+  cell->set_mesh_sha256(ref.sha256());
+  return ExitCode::kExitOk;
 }
 
 // Downloads the result of `job_id` to a temporary file (removed on exit).
@@ -192,6 +218,10 @@ int main(int argc, char** argv) {
   auto* cancel = app.add_subcommand("cancel", "cancel a queued or running job");
   cancel->add_option("job", job_id, "job id")->required();
 
+  auto* delete_cmd =
+      app.add_subcommand("delete", "delete a finished job: its record, events and result file");
+  delete_cmd->add_option("job", job_id, "job id")->required();
+
   auto* result =
       app.add_subcommand("result", "fetch a job's result: the HDF5 file (+ XDMF) or the curve as CSV");
   result->add_option("job", job_id, "job id")->required();
@@ -262,6 +292,8 @@ int main(int argc, char** argv) {
       return ExitCode::kExitUsage;
     }
     if (!name.empty()) request.mutable_spec()->set_name(name);
+    if (const int uploaded = upload_mesh_file(client, *request.mutable_spec()); uploaded != ExitCode::kExitOk)
+      return uploaded;
     // Retries of an unanswered submit must not create a second job.
     request.set_request_id(request_id.empty() ? random_request_id() : request_id);
     v1::SubmitJobResponse response;
@@ -323,6 +355,13 @@ int main(int argc, char** argv) {
     const grpc::Status status = client.cancel(job_id, &job);
     if (!status.ok()) return report_error(status, "cancel " + job_id);
     print_job(job);
+    return ExitCode::kExitOk;
+  }
+
+  if (delete_cmd->parsed()) {
+    const grpc::Status status = client.delete_job(job_id);
+    if (!status.ok()) return report_error(status, "delete " + job_id);
+    std::printf("%s deleted\n", job_id.c_str());
     return ExitCode::kExitOk;
   }
 

@@ -119,6 +119,31 @@ grpc::Status Client::cancel(const std::string& job_id, v1::Job* job) {
   return with_retry([&](grpc::ClientContext& c) { return stub_->CancelJob(&c, request, job); });
 }
 
+grpc::Status Client::delete_job(const std::string& job_id) {
+  v1::DeleteJobRequest request;
+  request.set_job_id(job_id);
+  v1::DeleteJobResponse response;
+  return with_retry([&](grpc::ClientContext& c) { return stub_->DeleteJob(&c, request, &response); });
+}
+
+grpc::Status Client::upload_mesh(const std::string& bytes, const std::string& name, v1::MeshRef* ref) {
+  // Retried whole while UNAVAILABLE; the server stores a mesh once by its hash.
+  return with_retry([&](grpc::ClientContext& c) {
+    auto writer = stub_->UploadMesh(&c, ref);
+    constexpr std::size_t kChunk = 1 << 20;
+    std::size_t offset = 0;
+    do {
+      v1::MeshChunk chunk;
+      if (offset == 0) chunk.set_file_name(name);
+      chunk.set_data(bytes.substr(offset, kChunk));
+      if (!writer->Write(chunk)) break;
+      offset += kChunk;
+    } while (offset < bytes.size());
+    writer->WritesDone();
+    return writer->Finish();
+  });
+}
+
 grpc::Status Client::watch(const std::string& job_id, std::int64_t after_sequence,
                            const std::function<bool(const v1::JobEvent&)>& on_event) {
   rpc::Backoff backoff(100ms, 2000ms);

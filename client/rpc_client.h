@@ -49,6 +49,11 @@ class Client {
   grpc::Status get(const std::string& job_id, v1::Job* job);
   grpc::Status list(const v1::ListJobsRequest& request, v1::ListJobsResponse* response);
   grpc::Status cancel(const std::string& job_id, v1::Job* job);
+  // Removes a terminal job (its rows and result file).
+  grpc::Status delete_job(const std::string& job_id);
+  // Uploads mesh bytes in 1 MiB chunks; *ref gets the hash to put in
+  // CellSpec.mesh_sha256. `name` is only named in the server's messages.
+  grpc::Status upload_mesh(const std::string& bytes, const std::string& name, v1::MeshRef* ref);
   // Calls on_event for every event after `after_sequence`, in order, until the
   // terminal state event (OK), on_event returns false (CANCELLED) or the
   // server stays unreachable for reconnect_s. Reconnects resume after the

@@ -1,5 +1,7 @@
 #include "jobs/registry.h"
 
+#include <google/protobuf/descriptor.h>
+
 #include <string>
 
 #include "jobs/quasi_static/quasi_static_job.h"
@@ -29,12 +31,41 @@ const SceneEntry* find_scene(const v1::JobSpec& spec) {
   return nullptr;
 }
 
+v1::CellSpec* mutable_scene_cell(v1::JobSpec& spec, std::string* scene) {
+  const google::protobuf::OneofDescriptor* oneof = spec.GetDescriptor()->FindOneofByName("scene");
+  const google::protobuf::Reflection* reflection = spec.GetReflection();
+  const google::protobuf::FieldDescriptor* field =
+      oneof ? reflection->GetOneofFieldDescriptor(spec, oneof) : nullptr;
+  if (field == nullptr || field->type() != google::protobuf::FieldDescriptor::TYPE_MESSAGE) return nullptr;
+  google::protobuf::Message* message = reflection->MutableMessage(&spec, field);
+  const google::protobuf::FieldDescriptor* cell = message->GetDescriptor()->FindFieldByName("cell");
+  if (cell == nullptr || cell->message_type() != v1::CellSpec::descriptor() ||
+      !message->GetReflection()->HasField(*message, cell)) {
+    return nullptr;
+  }
+  if (scene != nullptr) *scene = field->name();
+  return static_cast<v1::CellSpec*>(message->GetReflection()->MutableMessage(message, cell));
+}
+
 StatusOr<std::unique_ptr<PreparedJob>> SceneRegistry::prepare(const v1::JobSpec& spec) const {
   const SceneEntry* entry = find_scene(spec);
   if (entry == nullptr) {
     std::string names;
     for (const SceneEntry& e : kScenes) names += (names.empty() ? "" : ", ") + std::string(e.name);
     return invalid_argument("scene: one of " + names + " must be set");
+  }
+  // An uploaded mesh's bytes are filled in by the server or the worker that
+  // fetched them; without them the spec cannot run (and must not fall back to a sphere).
+  const google::protobuf::Message& scene = spec.GetReflection()->GetMessage(
+      spec, spec.GetDescriptor()->FindFieldByNumber(static_cast<int>(entry->scene_case)));
+  if (const auto* field = scene.GetDescriptor()->FindFieldByName("cell");
+      field != nullptr && field->message_type() == v1::CellSpec::descriptor()) {
+    const auto& cell = static_cast<const v1::CellSpec&>(scene.GetReflection()->GetMessage(scene, field));
+    if (!cell.mesh_sha256().empty() && cell.mesh_bytes().empty()) {
+      return invalid_argument(std::string(entry->name) +
+                              ".cell.mesh_sha256: an uploaded mesh runs through the service, which "
+                              "fetches its bytes (a local run reads cell.mesh_file)");
+    }
   }
   conversions_.fetch_add(1, std::memory_order_relaxed);
   return entry->prepare(spec);

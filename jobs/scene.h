@@ -61,6 +61,10 @@ class PreparedJob {
   // An upper estimate of the run's peak memory (see each scene's estimate).
   virtual std::int64_t memory_bytes() const = 0;
 
+  // The highest sample index a run can report (quasi-static: load_points - 1);
+  // < 0: no bound known. The server refuses reports beyond it.
+  virtual std::int64_t max_sample_index() const { return -1; }
+
   // Runs the scene, streams samples and progress to `events` and writes the
   // result file named by options.result_path; `spec` is stored in it as
   // /parameters (the spec this job was prepared from).

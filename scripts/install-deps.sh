@@ -15,6 +15,7 @@ packages=(
   libcli11-dev libspdlog-dev nlohmann-json3-dev
   libxml2-utils
   libzip-dev
+  libssl-dev
 )
 
 SUDO=""

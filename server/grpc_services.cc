@@ -96,6 +96,44 @@ grpc::Status CellflowServiceImpl::DownloadResult(grpc::ServerContext* context,
       [&](const v1::ResultChunk& chunk) { return !context->IsCancelled() && writer->Write(chunk); }, caller));
 }
 
+grpc::Status CellflowServiceImpl::UploadMesh(grpc::ServerContext* context,
+                                             grpc::ServerReader<v1::MeshChunk>* reader,
+                                             v1::MeshRef* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
+  if (jobs_.draining()) return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down"};
+  const std::uint64_t limit = jobs_.options().max_mesh_bytes;
+  std::string bytes;
+  std::string name;
+  v1::MeshChunk chunk;
+  bool first = true;
+  while (reader->Read(&chunk)) {
+    if (context->IsCancelled()) return {grpc::StatusCode::CANCELLED, "the client went away"};
+    if (first) name = chunk.file_name();
+    first = false;
+    // Refused as soon as the limit is passed, before more is kept.
+    if (bytes.size() + chunk.data().size() > limit) {
+      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+              "mesh: over this server's limit of " + std::to_string(limit) + " bytes (--max-mesh-bytes)"};
+    }
+    bytes += chunk.data();
+  }
+  if (bytes.empty()) return {grpc::StatusCode::INVALID_ARGUMENT, "mesh: the upload is empty"};
+  return reply(jobs_.upload_mesh(bytes, name), response);
+}
+
+grpc::Status CellflowServiceImpl::DeleteJob(grpc::ServerContext* context, const v1::DeleteJobRequest* request,
+                                            v1::DeleteJobResponse*) {
+  CELLFLOW_AUTHORIZE(context, caller)
+  return to_grpc(jobs_.delete_job(request->job_id(), caller));
+}
+
+grpc::Status WorkerServiceImpl::FetchMesh(grpc::ServerContext* context, const v1::FetchMeshRequest* request,
+                                          grpc::ServerWriter<v1::MeshChunk>* writer) {
+  CELLFLOW_AUTHORIZE(context, caller)
+  return to_grpc(jobs_.fetch_mesh(
+      *request, [&](const v1::MeshChunk& chunk) { return !context->IsCancelled() && writer->Write(chunk); }));
+}
+
 grpc::Status WorkerServiceImpl::LeaseJob(grpc::ServerContext* context, const v1::LeaseJobRequest* request,
                                          v1::LeaseJobResponse* response) {
   CELLFLOW_AUTHORIZE(context, caller)

@@ -34,6 +34,10 @@ class CellflowServiceImpl final : public v1::CellflowService::Service {
                         grpc::ServerWriter<v1::JobEvent>* writer) override;
   grpc::Status DownloadResult(grpc::ServerContext* context, const v1::DownloadResultRequest* request,
                               grpc::ServerWriter<v1::ResultChunk>* writer) override;
+  grpc::Status UploadMesh(grpc::ServerContext* context, grpc::ServerReader<v1::MeshChunk>* reader,
+                          v1::MeshRef* response) override;
+  grpc::Status DeleteJob(grpc::ServerContext* context, const v1::DeleteJobRequest* request,
+                         v1::DeleteJobResponse* response) override;
 
  private:
   JobService& jobs_;
@@ -56,6 +60,8 @@ class WorkerServiceImpl final : public v1::WorkerService::Service {
                        v1::FinishJobResponse* response) override;
   grpc::Status ReleaseJob(grpc::ServerContext* context, const v1::ReleaseJobRequest* request,
                           v1::FinishJobResponse* response) override;
+  grpc::Status FetchMesh(grpc::ServerContext* context, const v1::FetchMeshRequest* request,
+                         grpc::ServerWriter<v1::MeshChunk>* writer) override;
 
  private:
   JobService& jobs_;

@@ -5,7 +5,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -67,6 +69,20 @@ std::optional<std::string> unbase64url(const std::string& in) {
   return out;
 }
 
+// HDF5's format signature, at offset 0 or a power of two from 512 (a user block).
+bool has_hdf5_signature(const fs::path& path) {
+  static constexpr std::array<unsigned char, 8> kSignature = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  std::ifstream in(path, std::ios::binary);
+  for (std::int64_t offset : {0LL, 512LL, 1024LL, 2048LL, 4096LL}) {
+    std::array<unsigned char, 8> head{};
+    in.clear();
+    in.seekg(offset);
+    if (!in.read(reinterpret_cast<char*>(head.data()), head.size())) return false;
+    if (head == kSignature) return true;
+  }
+  return false;
+}
+
 Status sync_directory(const fs::path& dir) {
   const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
   if (fd < 0) return {StatusCode::kInternal, "cannot open directory " + dir.string()};
@@ -76,6 +92,64 @@ Status sync_directory(const fs::path& dir) {
 }
 
 }  // namespace
+
+std::string sanitize_text(const std::string& text, std::size_t max_bytes) {
+  static const std::string kReplacement = "\xEF\xBF\xBD";  // U+FFFD
+  std::string out;
+  out.reserve(std::min(text.size(), max_bytes));
+  const auto* p = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  std::size_t i = 0;
+  bool cut = false;
+  while (i < n) {
+    const unsigned char c = p[i];
+    std::size_t length = 0;
+    std::uint32_t code = 0;
+    if (c < 0x80) {
+      length = 1;
+      code = c;
+    } else if ((c & 0xE0) == 0xC0) {
+      length = 2;
+      code = c & 0x1F;
+    } else if ((c & 0xF0) == 0xE0) {
+      length = 3;
+      code = c & 0x0F;
+    } else if ((c & 0xF8) == 0xF0) {
+      length = 4;
+      code = c & 0x07;
+    }
+    bool valid = length > 0 && i + length <= n;
+    for (std::size_t k = 1; valid && k < length; ++k) {
+      valid = (p[i + k] & 0xC0) == 0x80;
+      code = (code << 6) | (p[i + k] & 0x3F);
+    }
+    // Overlong forms, surrogates and code points past U+10FFFF are invalid too.
+    if (valid) {
+      static constexpr std::uint32_t kMin[] = {0, 0, 0x80, 0x800, 0x10000};
+      valid = code >= kMin[length] && code <= 0x10FFFF && !(code >= 0xD800 && code <= 0xDFFF);
+    }
+    // Control characters other than tab and newline become spaces.
+    const std::string piece = !valid ? kReplacement
+                              : (code < 0x20 && code != '\t' && code != '\n') || code == 0x7F
+                                  ? std::string(" ")
+                                  : text.substr(i, length);
+    if (out.size() + piece.size() > max_bytes) {
+      cut = true;
+      break;
+    }
+    out += piece;
+    i += valid ? length : 1;
+  }
+  if (cut) {
+    while (!out.empty() && out.size() + 3 > max_bytes) {
+      // Drop whole characters: continuation bytes and then their lead byte.
+      while (!out.empty() && (static_cast<unsigned char>(out.back()) & 0xC0) == 0x80) out.pop_back();
+      if (!out.empty()) out.pop_back();
+    }
+    if (max_bytes >= 3) out += "...";
+  }
+  return out;
+}
 
 std::string encode_page_token(std::int64_t after_id, v1::Job::State state) {
   return base64url("v1:" + std::to_string(after_id) + ":" + std::to_string(static_cast<int>(state)));
@@ -106,6 +180,10 @@ Status ResultUpload::write(std::int64_t offset, const std::string& data) {
   if (offset != size_) {
     return invalid_argument("offset: expected " + std::to_string(size_) + ", got " + std::to_string(offset));
   }
+  if (max_bytes_ > 0 && size_ + static_cast<std::int64_t>(data.size()) > max_bytes_) {
+    return {StatusCode::kResourceExhausted, "upload: over this job's limit of " + std::to_string(max_bytes_) +
+                                                " bytes (a multiple of its memory estimate)"};
+  }
   std::size_t written = 0;
   while (written < data.size()) {
     const ssize_t n = ::pwrite(fd_, data.data() + written, data.size() - written, size_ + written);
@@ -127,7 +205,10 @@ StatusOr<std::int64_t> ResultUpload::complete() {
 }
 
 JobService::JobService(Store& store, Notifier& notifier, JobServiceOptions options)
-    : store_(store), notifier_(notifier), options_(std::move(options)) {
+    : store_(store),
+      notifier_(notifier),
+      options_(std::move(options)),
+      meshes_(options_.data_dir / "meshes", options_.max_mesh_bytes) {
   if (!options_.now_ms) options_.now_ms = system_now_ms;
   std::error_code error;
   fs::create_directories(options_.data_dir / "results", error);
@@ -158,6 +239,140 @@ Status JobService::check_visible(std::int64_t id, const Identity& caller) {
   return {};
 }
 
+StatusOr<std::unique_ptr<jobs::PreparedJob>> JobService::prepare_submitted(const v1::JobSpec& spec) {
+  if (spec.name().size() > options_.max_name_bytes) {
+    return invalid_argument("name: " + std::to_string(spec.name().size()) + " bytes; at most " +
+                            std::to_string(options_.max_name_bytes));
+  }
+  v1::JobSpec resolved = spec;
+  std::string scene;
+  if (v1::CellSpec* cell = jobs::mutable_scene_cell(resolved, &scene)) {
+    const std::string field = scene + ".cell.";
+    // A request names no file of the server's or a worker's machine: no
+    // stat, no open, nothing about the path in the answer.
+    if (!cell->mesh_file().empty()) {
+      return invalid_argument(field +
+                              "mesh_file: a job of the service cannot name a file; upload the mesh "
+                              "(UploadMesh; `cellflow submit --mesh-file` uploads it) and set " +
+                              field + "mesh_sha256");
+    }
+    if (!cell->mesh_bytes().empty()) {
+      return invalid_argument(field +
+                              "mesh_bytes: not accepted in a submitted spec; upload the mesh "
+                              "(UploadMesh) and set " +
+                              field + "mesh_sha256");
+    }
+    if (!cell->mesh_sha256().empty()) {
+      if (!is_sha256_hex(cell->mesh_sha256())) {
+        return invalid_argument(field + "mesh_sha256: must be 64 lowercase hex digits (MeshRef.sha256)");
+      }
+      auto bytes = meshes_.get(cell->mesh_sha256());
+      if (!bytes.ok()) {
+        return invalid_argument(field +
+                                "mesh_sha256: no uploaded mesh has this hash; upload it first "
+                                "(UploadMesh)");
+      }
+      cell->set_mesh_bytes(std::move(*bytes));
+    }
+  }
+  return registry_.prepare(resolved);
+}
+
+std::int64_t JobService::max_sample_index(std::int64_t job_id) {
+  {
+    std::lock_guard lock(sample_bounds_mutex_);
+    if (auto it = sample_bounds_.find(job_id); it != sample_bounds_.end()) return it->second;
+  }
+  // A job submitted before this server started: converted once more.
+  auto job = store_.get(job_id);
+  if (!job.ok()) return -1;
+  auto prepared = prepare_submitted(job->spec());
+  const std::int64_t bound = prepared.ok() ? (*prepared)->max_sample_index() : -1;
+  std::lock_guard lock(sample_bounds_mutex_);
+  sample_bounds_[job_id] = bound;
+  return bound;
+}
+
+void JobService::remove_uploads(std::int64_t job_id) {
+  const std::string prefix = job_name(job_id) + ".attempt-";
+  std::error_code error;
+  for (fs::directory_iterator it(options_.data_dir / "results", error), end; !error && it != end;
+       it.increment(error)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) == 0 && name.size() > 5 && name.ends_with(".part")) {
+      std::error_code ignored;
+      fs::remove(it->path(), ignored);
+    }
+  }
+}
+
+int JobService::remove_all_uploads() {
+  int removed = 0;
+  for (const fs::path& dir : {options_.data_dir / "results", options_.data_dir / "meshes"}) {
+    std::error_code error;
+    for (fs::directory_iterator it(dir, error), end; !error && it != end; it.increment(error)) {
+      if (it->path().filename().string().ends_with(".part")) {
+        std::error_code ignored;
+        if (fs::remove(it->path(), ignored)) ++removed;
+      }
+    }
+  }
+  return removed;
+}
+
+StatusOr<v1::MeshRef> JobService::upload_mesh(const std::string& bytes, const std::string& name) {
+  auto ref = meshes_.put(bytes, name.empty() ? "mesh" : sanitize_text(name, 200));
+  if (ref.ok()) {
+    spdlog::info("mesh {} stored ({} bytes, {} vertices, {} tets)", ref->sha256(), ref->size_bytes(),
+                 ref->vertex_count(), ref->tet_count());
+  }
+  return ref;
+}
+
+Status JobService::delete_job(const std::string& job_id, const Identity& caller) {
+  auto id = parse_id(job_id, "job_id");
+  if (!id.ok()) return id.status();
+  if (Status s = check_visible(*id, caller); !s.ok()) return s;
+  if (Status s = store_.delete_job(*id); !s.ok()) return s;
+  std::error_code error;
+  fs::remove(result_path(*id), error);
+  remove_uploads(*id);
+  {
+    std::lock_guard lock(sample_bounds_mutex_);
+    sample_bounds_.erase(*id);
+  }
+  spdlog::info("{} deleted", job_name(*id));
+  return {};
+}
+
+Status JobService::fetch_mesh(const v1::FetchMeshRequest& request,
+                              const std::function<bool(const v1::MeshChunk&)>& send) {
+  auto id = parse_id(request.lease().job_id(), "lease.job_id");
+  if (!id.ok()) return id.status();
+  auto check = store_.check_lease(*id, request.lease().lease_token());
+  if (!check.ok()) return check.status();
+  if (*check != LeaseCheck::kValid) return {StatusCode::kFailedPrecondition, "lease lost: fetch refused"};
+  auto job = store_.get(*id);
+  if (!job.ok()) return job.status();
+  v1::JobSpec spec = job->spec();
+  std::string scene;
+  const v1::CellSpec* cell = jobs::mutable_scene_cell(spec, &scene);
+  if (cell == nullptr || cell->mesh_sha256().empty() || cell->mesh_sha256() != request.sha256()) {
+    return invalid_argument("sha256: not the mesh of the leased job's spec");
+  }
+  auto bytes = meshes_.get(request.sha256());
+  if (!bytes.ok()) return bytes.status();
+  std::size_t offset = 0;
+  do {
+    v1::MeshChunk chunk;
+    const std::size_t n = std::min(options_.download_chunk_bytes, bytes->size() - offset);
+    chunk.set_data(bytes->substr(offset, n));
+    if (!send(chunk)) return {StatusCode::kCancelled, "the worker went away"};
+    offset += n;
+  } while (offset < bytes->size());
+  return {};
+}
+
 StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& request,
                                                    const Identity& caller) {
   if (draining()) return Status(StatusCode::kFailedPrecondition, "the server is shutting down");
@@ -166,7 +381,7 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
                             " characters");
   }
   // One conversion: validation and the memory estimate read the same parameters.
-  auto prepared = registry_.prepare(request.spec());
+  auto prepared = prepare_submitted(request.spec());
   if (!prepared.ok()) return prepared.status();
   const std::int64_t memory = (*prepared)->memory_bytes();
   if (options_.memory_limit_bytes > 0 && memory > options_.memory_limit_bytes) {
@@ -179,10 +394,14 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
   auto submitted = store_.submit(request.spec(), request.request_id(), memory, now(), caller.user);
   if (!submitted.ok()) return submitted.status();
   if (!submitted->existed) {
+    if (auto id = parse_job_name(submitted->job.id())) {
+      std::lock_guard lock(sample_bounds_mutex_);
+      sample_bounds_[*id] = (*prepared)->max_sample_index();
+    }
     published(submitted->job);
     notifier_.queue_changed();
     spdlog::info("{} queued{}{}", submitted->job.id(),
-                 request.spec().name().empty() ? "" : " \"" + request.spec().name() + "\"",
+                 request.spec().name().empty() ? "" : " \"" + sanitize_text(request.spec().name(), 80) + "\"",
                  request.request_id().empty() ? "" : " (request " + request.request_id() + ")");
   }
   v1::SubmitJobResponse response;
@@ -228,6 +447,7 @@ StatusOr<v1::Job> JobService::cancel(const std::string& job_id, const Identity& 
   if (Status s = check_visible(*id, caller); !s.ok()) return s;
   auto job = store_.cancel(*id, "cancelled by the client", now());
   if (job.ok()) {
+    remove_uploads(*id);
     published(*job);
     spdlog::info("{} cancelled", job->id());
   }
@@ -305,6 +525,7 @@ Status JobService::download(const std::string& job_id,
 StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& request,
                                                  const std::function<bool()>& client_gone) {
   if (request.worker_id().empty()) return invalid_argument("worker_id: must not be empty");
+  if (request.worker_id().size() > 256) return invalid_argument("worker_id: at most 256 bytes");
   const double wait_s = std::clamp(request.wait_s(), 0.0, 30.0);
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<int>(wait_s * 1000));
@@ -347,6 +568,7 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
   std::int64_t sequence = 0;
   v1::JobEvent event;
   std::optional<int> sample_index;
+  std::string refused;  // a report the server cannot trust: an error to it, the job unaffected
   switch (report.kind_case()) {
     case v1::WorkerReport::kHeartbeat: {
       auto beat = store_.heartbeat(*id, token, now(), ttl_ms());
@@ -354,9 +576,22 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
       check = *beat;
       break;
     }
-    case v1::WorkerReport::kProgress:
-      *event.mutable_progress() = report.progress();
+    case v1::WorkerReport::kProgress: {
+      const v1::Progress& p = report.progress();
+      // NaN fails both comparisons; rounding just outside [0, 1] is clamped below.
+      if (!(p.fraction_done() >= -1e-6 && p.fraction_done() <= 1.0 + 1e-6)) {
+        refused = "progress.fraction_done: must lie in [0, 1]";
+      } else if (!std::isfinite(p.elapsed_s()) || p.elapsed_s() < 0.0) {
+        refused = "progress.elapsed_s: must be finite and >= 0";
+      }
+      *event.mutable_progress() = p;
+      event.mutable_progress()->set_fraction_done(std::clamp(p.fraction_done(), 0.0, 1.0));
+      if (!std::isfinite(p.estimated_remaining_s()) || p.estimated_remaining_s() < 0.0) {
+        event.mutable_progress()->set_estimated_remaining_s(-1.0);  // unknown
+      }
+      event.mutable_progress()->set_stage(sanitize_text(p.stage(), 200));
       break;
+    }
     case v1::WorkerReport::kForceSample:
       *event.mutable_force_sample() = report.force_sample();
       sample_index = report.force_sample().index();
@@ -368,14 +603,30 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
     case v1::WorkerReport::KIND_NOT_SET:
       return invalid_argument("kind: a report needs a heartbeat, progress or sample");
   }
-  if (!report.has_heartbeat()) {
+  if (sample_index && refused.empty()) {
+    const std::int64_t bound = max_sample_index(*id);
+    if (*sample_index < 0 || (bound >= 0 && *sample_index > bound)) {
+      refused = "index: " + std::to_string(*sample_index) + " outside the job's range [0, " +
+                (bound >= 0 ? std::to_string(bound) : std::string("...")) + "]";
+    }
+  }
+  if (!refused.empty()) {
+    // Refused: nothing is appended; the report still renews the lease, as a heartbeat.
+    auto beat = store_.heartbeat(*id, token, now(), ttl_ms());
+    if (!beat.ok()) return beat.status();
+    check = *beat;
+    if (check == LeaseCheck::kValid) spdlog::warn("{}: report refused: {}", job_name(*id), refused);
+  } else if (!report.has_heartbeat()) {
     auto outcome = store_.append_event(*id, token, std::move(event), sample_index, now(), ttl_ms());
     if (!outcome.ok()) return outcome.status();
     check = outcome->lease;
     sequence = outcome->sequence;
+    refused = outcome->refused;
     if (sequence > 0) notifier_.publish(*id, sequence);
+    if (!refused.empty()) spdlog::warn("{}: report refused: {}", job_name(*id), refused);
   }
   v1::ReportAck ack;
+  if (check == LeaseCheck::kValid) ack.set_error(refused);
   ack.set_report_id(report.report_id());
   ack.set_lease_valid(check == LeaseCheck::kValid);
   ack.set_cancelled(check == LeaseCheck::kCancelled);
@@ -389,10 +640,15 @@ StatusOr<std::unique_ptr<ResultUpload>> JobService::begin_upload(const v1::Lease
   if (!check.ok()) return check.status();
   if (*check != LeaseCheck::kValid)
     return Status(StatusCode::kFailedPrecondition, "lease lost: upload refused");
+  auto job = store_.get(*id);
+  if (!job.ok()) return job.status();
+  // A result holds part of what the run keeps in memory: the job's own estimate bounds it.
+  const double limit = options_.upload_memory_factor * static_cast<double>(job->estimated_memory_bytes()) +
+                       static_cast<double>(options_.upload_slack_bytes);
   const fs::path path = upload_path(lease);
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return Status(StatusCode::kInternal, "cannot create " + path.string());
-  return std::make_unique<ResultUpload>(path, fd);
+  if (fd < 0) return Status(StatusCode::kInternal, "cannot create the upload file");
+  return std::make_unique<ResultUpload>(path, fd, static_cast<std::int64_t>(std::min(limit, 9e18)));
 }
 
 StatusOr<std::int64_t> JobService::adopt_upload(const v1::Lease& lease, std::int64_t job_id) {
@@ -415,6 +671,13 @@ StatusOr<v1::FinishJobResponse> JobService::finish(const v1::FinishJobRequest& r
     return Status(StatusCode::kFailedPrecondition,
                   "no result uploaded for this lease; upload it, then finish");
   }
+  // A result is an HDF5 file; anything else never becomes a SUCCEEDED job's result.
+  if (auto check = store_.check_lease(*id, request.lease().lease_token());
+      check.ok() && *check == LeaseCheck::kValid && !has_hdf5_signature(upload)) {
+    fs::remove(upload, error);
+    return Status(StatusCode::kInvalidArgument,
+                  "the uploaded result is not an HDF5 file (no HDF5 signature); upload the attempt's result");
+  }
   const auto size = static_cast<std::int64_t>(fs::file_size(upload, error));
   auto job = store_.finish(*id, request.lease().lease_token(), size, now(), [&]() -> Status {
     auto adopted = adopt_upload(request.lease(), *id);
@@ -435,7 +698,9 @@ StatusOr<v1::FinishJobResponse> JobService::fail(const v1::FailJobRequest& reque
   const fs::path upload = upload_path(request.lease());
   const bool has_upload = fs::exists(upload, error);
   const std::int64_t size = has_upload ? static_cast<std::int64_t>(fs::file_size(upload, error)) : -1;
-  const std::string reason = request.reason().empty() ? "the worker reported a failure" : request.reason();
+  // Never refused for its bytes: valid UTF-8, bounded (bytes on the wire).
+  const std::string given = sanitize_text(request.reason(), options_.max_reason_bytes);
+  const std::string reason = given.empty() ? "the worker reported a failure" : given;
   auto job = store_.fail(*id, request.lease().lease_token(), reason, size, now(), [&]() -> Status {
     if (!has_upload) return {};
     auto adopted = adopt_upload(request.lease(), *id);
@@ -452,7 +717,8 @@ StatusOr<v1::FinishJobResponse> JobService::fail(const v1::FailJobRequest& reque
 StatusOr<v1::FinishJobResponse> JobService::release(const v1::ReleaseJobRequest& request) {
   auto id = parse_id(request.lease().job_id(), "lease.job_id");
   if (!id.ok()) return id.status();
-  const std::string reason = request.reason().empty() ? "handed back by the worker" : request.reason();
+  const std::string given = sanitize_text(request.reason(), options_.max_reason_bytes);
+  const std::string reason = given.empty() ? "handed back by the worker" : given;
   auto job = store_.release(*id, request.lease().lease_token(), reason, now());
   if (!job.ok()) return job.status();
   std::error_code error;
@@ -466,13 +732,14 @@ StatusOr<v1::FinishJobResponse> JobService::release(const v1::ReleaseJobRequest&
 }
 
 int JobService::reap_expired_leases() {
-  auto changed = store_.requeue_expired(now());
+  auto changed = store_.requeue_expired(now(), static_cast<std::int64_t>(options_.max_run_time_s * 1000.0));
   if (!changed.ok()) {
     spdlog::error("lease reaper: {}", changed.status().to_string());
     return 0;
   }
   for (const v1::Job& job : *changed) {
     published(job);
+    if (auto id = parse_job_name(job.id())) remove_uploads(*id);  // that attempt can no longer finish
     spdlog::warn("{} -> {}: {}", job.id(), v1::Job::State_Name(job.state()), job.reason());
   }
   if (!changed->empty()) notifier_.queue_changed();

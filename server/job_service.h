@@ -8,7 +8,9 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "cellflow/v1/service.pb.h"
@@ -16,6 +18,7 @@
 #include "jobs/registry.h"
 #include "physics/core/status.h"
 #include "server/identity.h"
+#include "server/mesh_store.h"
 #include "server/notifier.h"
 #include "server/store.h"
 
@@ -31,13 +34,27 @@ struct JobServiceOptions {
   int max_request_id_length = 128;
   std::size_t download_chunk_bytes = 1 << 20;  // < the 4 MiB gRPC message limit
   std::function<std::int64_t()> now_ms;        // the clock; unset: system clock
+  // Hostile input. Uploaded meshes at most this large (MeshStore).
+  std::uint64_t max_mesh_bytes = std::uint64_t{64} << 20;
+  std::size_t max_name_bytes = 1024;    // JobSpec.name at submit
+  std::size_t max_reason_bytes = 4096;  // FailJob/ReleaseJob reasons and progress stages (truncated)
+  // A result upload may be at most this multiple of the job's memory estimate
+  // plus upload_slack_bytes (a result holds a fraction of what the run keeps).
+  double upload_memory_factor = 4.0;
+  std::int64_t upload_slack_bytes = 64LL << 20;
+  double max_run_time_s = 0.0;  // > 0: an attempt leased longer ago loses its lease
 };
+
+// Valid UTF-8 of at most max_bytes: invalid sequences become U+FFFD, the end
+// is cut at a character boundary (with "..." when cut).
+std::string sanitize_text(const std::string& text, std::size_t max_bytes);
 
 // A result file being uploaded by a worker, written under a temporary name
 // per attempt; it becomes the job's result only on a fenced FinishJob/FailJob.
 class ResultUpload {
  public:
-  ResultUpload(std::filesystem::path path, int fd) : path_(std::move(path)), fd_(fd) {}
+  ResultUpload(std::filesystem::path path, int fd, std::int64_t max_bytes = 0)
+      : path_(std::move(path)), fd_(fd), max_bytes_(max_bytes) {}
   ~ResultUpload();
   ResultUpload(const ResultUpload&) = delete;
   ResultUpload& operator=(const ResultUpload&) = delete;
@@ -49,6 +66,7 @@ class ResultUpload {
   std::filesystem::path path_;
   int fd_ = -1;
   std::int64_t size_ = 0;
+  std::int64_t max_bytes_ = 0;  // > 0: a write past it is refused (RESOURCE_EXHAUSTED)
   bool completed_ = false;
 };
 
@@ -74,6 +92,9 @@ class JobService {
                const std::function<bool()>& client_gone, const Identity& caller = Identity::local());
   Status download(const std::string& job_id, const std::function<bool(const v1::ResultChunk&)>& send,
                   const Identity& caller = Identity::local());
+  // A whole mesh upload (the handler collects the chunks up to max_mesh_bytes).
+  StatusOr<v1::MeshRef> upload_mesh(const std::string& bytes, const std::string& name);
+  Status delete_job(const std::string& job_id, const Identity& caller = Identity::local());
 
   // --- worker API ---
   StatusOr<v1::LeaseJobResponse> lease(const v1::LeaseJobRequest& request,
@@ -83,6 +104,9 @@ class JobService {
   StatusOr<v1::FinishJobResponse> finish(const v1::FinishJobRequest& request);
   StatusOr<v1::FinishJobResponse> fail(const v1::FailJobRequest& request);
   StatusOr<v1::FinishJobResponse> release(const v1::ReleaseJobRequest& request);
+  // The bytes of a mesh the leased job's spec names, in chunks.
+  Status fetch_mesh(const v1::FetchMeshRequest& request,
+                    const std::function<bool(const v1::MeshChunk&)>& send);
 
   // --- housekeeping (the server's Asio timers and shutdown) ---
   // Requeues or fails jobs whose lease expired; returns how many changed.
@@ -93,6 +117,10 @@ class JobService {
   // Every RUNNING job back to QUEUED (shutdown after the grace period).
   int release_all_running(const std::string& reason);
   std::int64_t running_jobs() { return store_.count(v1::Job::RUNNING); }
+  // Removes every result upload (results/*.part) that no attempt can still
+  // finish: at server start and at shutdown.
+  int remove_all_uploads();
+  const MeshStore& meshes() const { return meshes_; }
 
   std::filesystem::path result_path(std::int64_t job_id) const;
   const JobServiceOptions& options() const { return options_; }
@@ -108,12 +136,23 @@ class JobService {
   void published(const v1::Job& job);
   // kNotFound unless `caller` may see job `id`.
   Status check_visible(std::int64_t id, const Identity& caller);
+  // Refuses what a server job may not carry (a mesh_file path, inline mesh
+  // bytes, an oversized name), then fills in the bytes of mesh_sha256 from
+  // the mesh store and prepares the spec.
+  StatusOr<std::unique_ptr<jobs::PreparedJob>> prepare_submitted(const v1::JobSpec& spec);
+  // The highest sample index the job can report (cached per job); < 0: unknown.
+  std::int64_t max_sample_index(std::int64_t job_id);
+  // Removes the uploads of every attempt of the job (after its lease is gone).
+  void remove_uploads(std::int64_t job_id);
 
   Store& store_;
   Notifier& notifier_;
   JobServiceOptions options_;
   jobs::SceneRegistry registry_;  // converts and validates each submitted spec once
   std::atomic<bool> draining_{false};
+  MeshStore meshes_;
+  std::mutex sample_bounds_mutex_;
+  std::map<std::int64_t, std::int64_t> sample_bounds_;  // job id -> max_sample_index
 };
 
 // Opaque page tokens: the last id of the page and the filter, base64url.

@@ -175,6 +175,13 @@ int main(int argc, char** argv) {
                  "PEM CA: clients and workers must present a certificate it signed (mTLS)");
   app.add_flag("--insecure-listen", options.insecure_listen,
                "allow a listener reachable from other hosts without TLS (tokens travel in plaintext)");
+  app.add_option("--max-mesh-bytes", options.max_mesh_bytes, "largest mesh UploadMesh accepts")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
+  app.add_option("--max-run-time-s", options.max_run_time_s,
+                 "an attempt running longer loses its lease, heartbeats or not (0: no limit)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e9));
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
 
   // cellflow-server token create|list|revoke: API tokens in the database of --data-dir.

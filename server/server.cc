@@ -1,9 +1,11 @@
 #include "server/server.h"
 
+#include <fcntl.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <spdlog/spdlog.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <boost/asio/io_context.hpp>
@@ -193,6 +195,31 @@ class Shutdown {
   std::chrono::steady_clock::time_point deadline_;
 };
 
+// An exclusive lock on data_dir/cellflow.lock for the life of the process:
+// two servers on one database would both lease and reap. Returns the fd (kept
+// open), or -1 with *message set.
+int lock_data_dir(const fs::path& dir, std::string* message) {
+  const fs::path path = dir / "cellflow.lock";
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    *message = "cannot open the lock file " + path.string();
+    return -1;
+  }
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    char holder[32] = {0};
+    const ssize_t n = ::pread(fd, holder, sizeof holder - 1, 0);
+    std::string pid = n > 0 ? std::string(holder, static_cast<std::size_t>(n)) : "";
+    while (!pid.empty() && (pid.back() == '\n' || pid.back() == ' ')) pid.pop_back();
+    *message = "data directory " + dir.string() + " is in use by another cellflow-server" +
+               (pid.empty() ? "" : " (pid " + pid + ")") + "; stop it or choose another --data-dir";
+    ::close(fd);
+    return -1;
+  }
+  const std::string pid = std::to_string(::getpid()) + "\n";
+  if (::ftruncate(fd, 0) == 0) (void)!::pwrite(fd, pid.data(), pid.size(), 0);
+  return fd;
+}
+
 void schedule_reaper(boost::asio::steady_timer& timer, JobService& jobs, std::chrono::milliseconds period) {
   timer.expires_after(period);
   timer.async_wait([&timer, &jobs, period](const boost::system::error_code& error) {
@@ -215,6 +242,12 @@ int run_server(const ServerOptions& options) {
     spdlog::error("cannot create data directory {}: {}", options.data_dir, error.message());
     return 1;
   }
+  std::string lock_message;
+  const int lock_fd = lock_data_dir(options.data_dir, &lock_message);
+  if (lock_fd < 0) {
+    spdlog::error("{}", lock_message);
+    return 1;
+  }
   StoreOptions store_options;
   store_options.path = (fs::path(options.data_dir) / "cellflow.sqlite").string();
   store_options.max_attempts = options.max_attempts;
@@ -232,6 +265,12 @@ int run_server(const ServerOptions& options) {
     spdlog::error("{}", s.to_string());
     return 1;
   }
+  // Jobs RUNNING when the server stopped: their attempt is not charged (a
+  // worker's hand-back may not have reached a crashed server).
+  if (Status s = (*store)->forgive_running_attempts(); !s.ok()) {
+    spdlog::error("{}", s.to_string());
+    return 1;
+  }
   spdlog::info("database {} (schema version {}): {} queued, {} running", store_options.path,
                (*store)->schema_version(), (*store)->count(v1::Job::QUEUED),
                (*store)->count(v1::Job::RUNNING));
@@ -243,6 +282,9 @@ int run_server(const ServerOptions& options) {
       options.memory_limit_bytes >= 0 ? options.memory_limit_bytes : physical_memory_bytes() / 10 * 8;
   service_options.lease_ttl_s = options.lease_ttl_s;
   service_options.heartbeat_interval_s = options.heartbeat_interval_s;
+  service_options.max_mesh_bytes =
+      static_cast<std::uint64_t>(std::max<std::int64_t>(options.max_mesh_bytes, 0));
+  service_options.max_run_time_s = options.max_run_time_s;
   JobService jobs(**store, notifier, service_options);
   // Authentication: one verdict per call from each listener's interceptor.
   const AuthMode auth_mode = options.auth == "none" ? AuthMode::kNone : AuthMode::kToken;
@@ -267,6 +309,9 @@ int run_server(const ServerOptions& options) {
         options.data_dir);
   }
   CallAuth public_calls, worker_calls;
+  // Uploads of the previous run can never finish: the workers upload again.
+  if (const int removed = jobs.remove_all_uploads(); removed > 0)
+    spdlog::info("removed {} unfinished upload(s)", removed);
   CellflowServiceImpl public_api(jobs, &public_calls);
   WorkerServiceImpl worker_api(jobs, &worker_calls);
 
@@ -357,7 +402,9 @@ int run_server(const ServerOptions& options) {
   io.run();
   server->Wait();
   worker_server->Wait();
+  jobs.remove_all_uploads();
   spdlog::info("cellflow-server stopped");
+  ::close(lock_fd);
   return 0;
 }
 

@@ -31,6 +31,8 @@ struct ServerOptions {
   std::int64_t memory_limit_bytes = -1;  // -1: 80 % of physical memory; 0: no limit
   double grace_s = 30.0;                 // how long running jobs may finish on SIGTERM
   bool sqlite_synchronous_full = false;
+  std::int64_t max_mesh_bytes = 64LL << 20;  // UploadMesh size limit
+  double max_run_time_s = 86400.0;           // an attempt leased longer ago loses its lease; 0: no limit
 };
 
 // Runs until SIGINT/SIGTERM; returns the process exit code (0 after a clean

@@ -594,7 +594,7 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
     if (rc != SQLITE_DONE) return sqlite_error(writer_, "renew");
     auto check = lease_state(writer_, job_id, lease_token);
     if (!check.ok()) return check.status();
-    return ReportOutcome{*check, 0};
+    return ReportOutcome{*check, 0, {}};
   }
   const int attempt = static_cast<int>(renew.int64(0));
   renew.step();
@@ -603,12 +603,21 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
         writer_,
         "SELECT MAX(sample_index) FROM events WHERE job_id = ? AND kind = ? AND sample_index IS NOT NULL");
     last.bind(1, job_id).bind(2, std::string(kind_name(event)));
-    const bool delivered = last.step() == SQLITE_ROW && !last.is_null(0) && last.int64(0) >= *sample_index;
+    const bool any = last.step() == SQLITE_ROW && !last.is_null(0);
+    const std::int64_t highest = any ? last.int64(0) : -1;
     last.reset();
+    const bool delivered = highest >= *sample_index;
+    if (*sample_index > highest + 1) {
+      if (Status s = txn.commit(); !s.ok()) return s;
+      ReportOutcome outcome{LeaseCheck::kValid, 0, {}};
+      outcome.refused = "index: " + std::to_string(*sample_index) + " skips ahead; the next sample is " +
+                        std::to_string(highest + 1) + " (samples come in order, without gaps)";
+      return outcome;
+    }
     if (delivered) {
       // Already delivered (by this attempt's resend or an earlier attempt): keep the lease renewal only.
       if (Status s = txn.commit(); !s.ok()) return s;
-      return ReportOutcome{LeaseCheck::kValid, 0};
+      return ReportOutcome{LeaseCheck::kValid, 0, {}};
     }
   }
   if (event.has_progress()) {
@@ -621,7 +630,7 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
   auto seq = append_event_row(writer_, job_id, attempt, std::move(event), sample_index, now_ms);
   if (!seq.ok()) return seq.status();
   if (Status s = txn.commit(); !s.ok()) return s;
-  return ReportOutcome{LeaseCheck::kValid, *seq};
+  return ReportOutcome{LeaseCheck::kValid, *seq, {}};
 }
 
 namespace {
@@ -690,7 +699,7 @@ StatusOr<v1::Job> Store::release(std::int64_t job_id, const std::string& lease_t
   return end_attempt(writer_, job_id, lease_token, v1::Job::QUEUED, reason, -1, now_ms, {});
 }
 
-StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms) {
+StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms, std::int64_t max_run_ms) {
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
@@ -699,25 +708,33 @@ StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms) {
     int attempt;
     int released;
     std::string worker_id;
+    bool overdue;
   };
   std::vector<Expired> expired;
   {
+    // The attempt's start: the time of its RUNNING event (events of the attempt, kind "state").
     Stmt find(writer_,
-              "SELECT id, attempt, released, worker_id FROM jobs WHERE state = ? AND lease_expires_ms < ?");
-    find.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms);
+              "SELECT id, attempt, released, worker_id, lease_expires_ms >= ?2 FROM jobs j WHERE state = ?1 "
+              "AND (lease_expires_ms < ?2 OR (?3 > 0 AND (SELECT MIN(time_ms) FROM events e WHERE "
+              "e.job_id = j.id AND e.attempt = j.attempt AND e.kind = 'state') < ?2 - ?3))");
+    find.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms).bind(3, max_run_ms);
     while (find.step() == SQLITE_ROW) {
-      expired.push_back(
-          {find.int64(0), static_cast<int>(find.int64(1)), static_cast<int>(find.int64(2)), find.text(3)});
+      expired.push_back({find.int64(0), static_cast<int>(find.int64(1)), static_cast<int>(find.int64(2)),
+                         find.text(3), find.int64(4) != 0});
     }
   }
   std::vector<v1::Job> changed;
   for (const Expired& e : expired) {
     const int counted = e.attempt - e.released;
     const bool give_up = counted >= options_.max_attempts;
+    const std::string why = e.overdue ? "attempt " + std::to_string(e.attempt) + " of worker " + e.worker_id +
+                                            " ran longer than the server's limit of " +
+                                            std::to_string(max_run_ms / 1000) + " s (--max-run-time-s)"
+                                      : "lease of worker " + e.worker_id + " expired";
     const std::string reason =
-        give_up ? "lease of worker " + e.worker_id + " expired; " + std::to_string(counted) +
-                      " attempts reached the limit of " + std::to_string(options_.max_attempts)
-                : "lease of worker " + e.worker_id + " expired (attempt " + std::to_string(e.attempt) + ")";
+        give_up ? why + "; " + std::to_string(counted) + " attempts reached the limit of " +
+                      std::to_string(options_.max_attempts)
+                : why + (e.overdue ? "" : " (attempt " + std::to_string(e.attempt) + ")");
     const v1::Job::State state = give_up ? v1::Job::FAILED : v1::Job::QUEUED;
     Stmt update(
         writer_,
@@ -747,6 +764,34 @@ Status Store::extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_
   update.bind(1, now_ms + lease_ttl_ms).bind(2, static_cast<int>(v1::Job::RUNNING));
   if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "extend leases");
   return {};
+}
+
+Status Store::forgive_running_attempts() {
+  std::lock_guard lock(write_mutex_);
+  Stmt update(writer_, "UPDATE jobs SET released = released + 1 WHERE state = ?");
+  update.bind(1, static_cast<int>(v1::Job::RUNNING));
+  if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "forgive attempts");
+  return {};
+}
+
+Status Store::delete_job(std::int64_t job_id) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  auto job = load_job(writer_, job_id);
+  if (!job.ok()) return job.status();
+  if (!is_terminal(job->state())) {
+    return {StatusCode::kFailedPrecondition, "job_id: " + job->id() + " is " +
+                                                 v1::Job::State_Name(job->state()) +
+                                                 "; only a SUCCEEDED, FAILED or CANCELLED job can be deleted "
+                                                 "(cancel it first)"};
+  }
+  for (const char* sql : {"DELETE FROM events WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"}) {
+    Stmt remove(writer_, sql);
+    remove.bind(1, job_id);
+    if (remove.step() != SQLITE_DONE) return sqlite_error(writer_, "delete job");
+  }
+  return txn.commit();
 }
 
 StatusOr<std::vector<v1::Job>> Store::release_all_running(const std::string& reason, std::int64_t now_ms) {

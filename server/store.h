@@ -73,6 +73,7 @@ struct TokenRecord {
 struct ReportOutcome {
   LeaseCheck lease = LeaseCheck::kLost;
   std::int64_t sequence = 0;  // the event's sequence; 0 when nothing was appended
+  std::string refused;        // non-empty: the report was refused (nothing appended; lease renewed)
 };
 
 class Store {
@@ -116,7 +117,9 @@ class Store {
   StatusOr<LeaseCheck> heartbeat(std::int64_t job_id, const std::string& lease_token, std::int64_t now_ms,
                                  std::int64_t lease_ttl_ms);
   // Renews the lease and appends `event` (sequence, attempt and time are set
-  // here). sample_index: set for samples (see the header comment).
+  // here). sample_index: set for samples (see the header comment); an index
+  // beyond the next one (a gap, which would hide the samples in between) is
+  // refused (outcome.refused), an index already delivered is not appended.
   StatusOr<ReportOutcome> append_event(std::int64_t job_id, const std::string& lease_token,
                                        v1::JobEvent event, std::optional<int> sample_index,
                                        std::int64_t now_ms, std::int64_t lease_ttl_ms);
@@ -137,7 +140,14 @@ class Store {
 
   // RUNNING jobs whose lease expired before now_ms go back to QUEUED, or to
   // FAILED once max_attempts leases have expired. Returns the changed jobs.
-  StatusOr<std::vector<v1::Job>> requeue_expired(std::int64_t now_ms);
+  // max_run_ms > 0: an attempt leased longer ago than that loses its lease
+  // too (a worker that only heartbeats cannot hold a job forever).
+  StatusOr<std::vector<v1::Job>> requeue_expired(std::int64_t now_ms, std::int64_t max_run_ms = 0);
+  // On start-up: the attempts of jobs RUNNING when the server stopped are not
+  // charged, whether their worker renews the lease or it expires.
+  Status forgive_running_attempts();
+  // Removes a terminal job's row and events; FAILED_PRECONDITION otherwise.
+  Status delete_job(std::int64_t job_id);
   // On start-up: every running lease expires no sooner than now + ttl, so a
   // worker that outlived a server restart can still renew it.
   Status extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_ms);

@@ -17,5 +17,9 @@ using jobs::RunOutcome;
 
 RunOutcome run_job(const jobs::SceneRegistry& registry, const v1::JobSpec& spec, const RunOptions& options,
                    const JobEvents& events);
+// The same with the spec that runs (e.g. with an uploaded mesh's bytes filled
+// in, CellSpec.mesh_bytes) apart from the one recorded as /parameters.
+RunOutcome run_job(const jobs::SceneRegistry& registry, const v1::JobSpec& spec, const v1::JobSpec& recorded,
+                   const RunOptions& options, const JobEvents& events);
 
 }  // namespace cellflow::worker

@@ -73,6 +73,8 @@ void Reporter::run() {
         std::lock_guard lock(mutex_);
         last_contact_ = Clock::now();
         if (!ack.lease_valid()) (ack.cancelled() ? cancelled_ : lease_lost_) = true;
+        if (!ack.error().empty())
+          spdlog::warn("{}: the server refused report {}: {}", lease_.job_id(), ack.report_id(), ack.error());
         if (ack.report_id() > 0) {
           while (!unacked_.empty() && unacked_.front().report_id() <= ack.report_id()) unacked_.pop_front();
         }

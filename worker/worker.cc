@@ -1,8 +1,10 @@
 #include "worker/worker.h"
 
+#include <signal.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -43,6 +45,7 @@ Worker::Worker(WorkerOptions options, std::unique_ptr<v1::WorkerService::StubInt
     : options_(std::move(options)), stub_(std::move(stub)) {
   id_ = options_.name + "@" + host_name() + ":" + std::to_string(::getpid());
   if (options_.scratch_dir.empty()) {
+    own_scratch_ = true;
     options_.scratch_dir =
         (fs::temp_directory_path() / ("cellflow-worker-" + std::to_string(::getpid()))).string();
   }
@@ -57,8 +60,28 @@ bool Worker::sleep_unless_stopped(std::chrono::milliseconds duration) {
   return !stop_.load();
 }
 
+void Worker::remove_stale_scratch() {
+  const fs::path parent = fs::path(options_.scratch_dir).parent_path();
+  const std::string prefix = "cellflow-worker-";
+  std::error_code error;
+  for (fs::directory_iterator it(parent, error), end; !error && it != end; it.increment(error)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) != 0 || name.size() == prefix.size() || name.size() > prefix.size() + 9)
+      continue;
+    const std::string digits = name.substr(prefix.size());
+    if (digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    const pid_t pid = static_cast<pid_t>(std::stol(digits));
+    if (pid <= 0 || pid == ::getpid()) continue;
+    // Only a pid that no longer exists (ESRCH); another user's live worker gives EPERM.
+    if (::kill(pid, 0) == 0 || errno != ESRCH) continue;
+    std::error_code ignored;
+    if (fs::remove_all(it->path(), ignored) > 0) spdlog::info("removed stale scratch directory {}", name);
+  }
+}
+
 int Worker::run() {
   std::error_code error;
+  if (own_scratch_) remove_stale_scratch();
   fs::create_directories(options_.scratch_dir, error);
   if (error) {
     spdlog::error("cannot create scratch directory {}: {}", options_.scratch_dir, error.message());
@@ -110,8 +133,53 @@ int Worker::run() {
   }
   spdlog::info("worker {} stopped after {} attempt(s)", id_, attempts);
   std::error_code ignored;
-  if (!options_.keep_results) fs::remove(options_.scratch_dir, ignored);  // only if empty
+  if (own_scratch_ && !options_.keep_results) {
+    fs::remove_all(options_.scratch_dir, ignored);
+  } else if (!options_.keep_results) {
+    fs::remove(options_.scratch_dir, ignored);  // only if empty
+  }
   return 0;
+}
+
+Status Worker::fetch_mesh(v1::JobSpec& spec, const v1::Lease& lease) {
+  std::string scene;
+  v1::CellSpec* cell = jobs::mutable_scene_cell(spec, &scene);
+  if (cell == nullptr) return {};
+  const std::string field = scene + ".cell.";
+  if (!cell->mesh_file().empty()) {
+    return invalid_argument(field +
+                            "mesh_file: a worker reads no file a job names; upload the mesh and set " +
+                            field + "mesh_sha256");
+  }
+  cell->clear_mesh_bytes();
+  if (cell->mesh_sha256().empty()) return {};
+  constexpr std::size_t kMaxMeshBytes = std::size_t{1} << 30;  // the server's limit is far lower
+  std::string bytes;
+  rpc::RetryOptions retry;
+  retry.deadline = 60s;
+  retry.max_attempts = 5;
+  const grpc::Status status = rpc::call_with_retry(retry, [&](grpc::ClientContext& context) {
+    bytes.clear();
+    v1::FetchMeshRequest request;
+    *request.mutable_lease() = lease;
+    request.set_sha256(cell->mesh_sha256());
+    auto reader = stub_->FetchMesh(&context, request);
+    v1::MeshChunk chunk;
+    while (reader->Read(&chunk)) {
+      if (bytes.size() + chunk.data().size() > kMaxMeshBytes) {
+        context.TryCancel();
+        break;
+      }
+      bytes += chunk.data();
+    }
+    return reader->Finish();
+  });
+  if (!status.ok()) {
+    return Status(StatusCode::kFailedPrecondition,
+                  field + "mesh_sha256: cannot fetch the uploaded mesh: " + status.error_message());
+  }
+  cell->set_mesh_bytes(std::move(bytes));
+  return {};
 }
 
 void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
@@ -163,7 +231,14 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   run_options.result_path = temporary.string();
   run_options.threads = options_.threads;
   run_options.debug_delay_per_point_ms = options_.debug_delay_per_point_ms;
-  const RunOutcome outcome = run_job(registry_, leased.spec(), run_options, events);
+  // The spec runs with its uploaded mesh's bytes; the result records the spec as leased.
+  v1::JobSpec spec = leased.spec();
+  RunOutcome outcome;
+  if (Status fetched = fetch_mesh(spec, lease); fetched.ok()) {
+    outcome = run_job(registry_, spec, leased.spec(), run_options, events);
+  } else {
+    outcome.status = fetched;
+  }
 
   // Every sample reaches the server before the attempt ends.
   reporter.close(ttl);
@@ -186,11 +261,24 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     v1::ReleaseJobRequest request;
     *request.mutable_lease() = lease;
     request.set_reason("worker " + id_ + " stopped");
-    v1::FinishJobResponse response;
-    grpc::ClientContext context;
-    rpc::set_deadline(context, 5s);
-    const grpc::Status status = stub_->ReleaseJob(&context, request, &response);
-    spdlog::info("{}: handed back ({})", job, status.ok() ? "ok" : status.error_message());
+    // Tried again while the server is UNAVAILABLE, for a few seconds (the worker is stopping).
+    rpc::RetryOptions release_retry;
+    release_retry.deadline = 2s;
+    release_retry.max_attempts = 0;
+    release_retry.give_up_after = 4s;
+    release_retry.initial_backoff = 100ms;
+    release_retry.max_backoff = 1000ms;
+    const grpc::Status status = rpc::call_with_retry(release_retry, [&](grpc::ClientContext& context) {
+      v1::FinishJobResponse response;
+      return stub_->ReleaseJob(&context, request, &response);
+    });
+    if (status.ok()) {
+      spdlog::info("{}: handed back", job);
+    } else {
+      spdlog::warn(
+          "{}: hand-back failed ({}); the server requeues the job when the lease expires or it restarts", job,
+          status.error_message());
+    }
     cleanup();
     return;
   }

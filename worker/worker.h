@@ -22,6 +22,7 @@ struct WorkerOptions {
   std::string server_address = "127.0.0.1:50051";
   std::string name = "worker";       // worker id = name@host:pid
   std::string scratch_dir;           // where results are written; default: $TMPDIR/cellflow-worker-<pid>
+                                     // (removed on exit; those of dead pids are removed at start)
   double lease_wait_s = 10.0;        // long-poll time of one LeaseJob call
   int max_jobs = 0;                  // exit after this many attempts; 0: no limit
   double idle_exit_s = 0.0;          // exit after this long without a job; 0: never
@@ -55,6 +56,11 @@ class Worker {
 
  private:
   void run_attempt(const v1::LeaseJobResponse& lease);
+  // Fills in the bytes of the uploaded mesh the spec names (FetchMesh);
+  // refuses a spec that names a file of this machine.
+  Status fetch_mesh(v1::JobSpec& spec, const v1::Lease& lease);
+  // Removes the scratch directories of workers that are gone (default location only).
+  void remove_stale_scratch();
   bool sleep_unless_stopped(std::chrono::milliseconds duration);
 
   WorkerOptions options_;
@@ -62,6 +68,7 @@ class Worker {
   std::unique_ptr<v1::WorkerService::StubInterface> stub_;
   jobs::SceneRegistry registry_;
   std::atomic<bool> stop_{false};
+  bool own_scratch_ = false;  // the default per-pid scratch directory: removed on exit
 };
 
 }  // namespace cellflow::worker

@@ -5,6 +5,9 @@
 // among them).
 #pragma once
 
+#include <memory>
+#include <string>
+
 #include "cellflow/v1/cell.pb.h"
 #include "physics/cell/cell_params.h"
 
@@ -29,6 +32,10 @@ inline cell::CellParams to_cell(const v1::CellSpec& c, cell::CellParams cell) {
   }
   if (c.has_target_vertex_count()) cell.target_vertex_count = c.target_vertex_count();
   cell.mesh_file = c.mesh_file();
+  if (!c.mesh_bytes().empty()) {
+    cell.mesh_bytes = std::make_shared<const std::string>(c.mesh_bytes());
+    cell.mesh_name = "mesh " + c.mesh_sha256().substr(0, 16);
+  }
   return cell;
 }
 

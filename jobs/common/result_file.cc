@@ -31,7 +31,31 @@ void ResultRecorder::write_connectivity(const mesh::TetMesh& mesh) {
   keep(writer_->write_tetrahedra("cell", mesh.tets, region));
 }
 
+namespace {
+
+// numNodes of the first $Nodes section of Gmsh 4.1 ASCII bytes (the line after
+// "$Nodes": numEntityBlocks numNodes minNodeTag maxNodeTag); -1 if unreadable.
+std::int64_t gmsh_declared_nodes(const std::string& bytes) {
+  std::size_t at = bytes.find("$Nodes");
+  while (at != std::string::npos && at > 0 && bytes[at - 1] != '\n') at = bytes.find("$Nodes", at + 1);
+  if (at == std::string::npos) return -1;
+  const std::size_t line = bytes.find('\n', at);
+  if (line == std::string::npos) return -1;
+  long long blocks = 0, nodes = 0;
+  const std::string header = bytes.substr(line + 1, 200);
+  if (std::sscanf(header.c_str(), "%lld %lld", &blocks, &nodes) != 2 || nodes < 0) return -1;
+  return static_cast<std::int64_t>(nodes);
+}
+
+}  // namespace
+
 std::int64_t cell_vertex_bound(const cell::CellParams& cell) {
+  if (cell.mesh_bytes) {
+    // The declared count of the mesh's header (an uploaded mesh was read
+    // whole at upload); the size bound when the header cannot be read.
+    const std::int64_t declared = gmsh_declared_nodes(*cell.mesh_bytes);
+    return declared >= 0 ? declared : static_cast<std::int64_t>(cell.mesh_bytes->size() / 30);
+  }
   if (!cell.mesh_file.empty()) {
     std::error_code error;
     const auto size = std::filesystem::file_size(cell.mesh_file, error);

@@ -165,6 +165,8 @@ class QuasiStaticJob final : public PreparedJob {
     return kBaselineBytes + cell_vertex_bound(checked_.params().cell) * kBytesPerVertex;
   }
 
+  std::int64_t max_sample_index() const override { return checked_.params().load_points - 1; }
+
   RunOutcome run(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) override {
     RunOutcome outcome;
     scenes::Checked<Params> checked = checked_;

@@ -168,6 +168,13 @@ class ShearFlowJob final : public PreparedJob {
            cell_vertex_bound(planned_.params().cell) * kBytesPerVertex;
   }
 
+  // One sample every sample_every_strain up to max_strain, and the final one.
+  std::int64_t max_sample_index() const override {
+    const auto& numerics = planned_.params().numerics;
+    const double samples = numerics.max_strain / numerics.sample_every_strain;
+    return samples < 1e12 ? static_cast<std::int64_t>(samples) + 2 : -1;
+  }
+
   RunOutcome run(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) override {
     RunOutcome outcome;
     scenes::PlannedShearFlow planned = planned_;

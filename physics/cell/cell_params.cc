@@ -49,7 +49,9 @@ Violations check(const CellParams& cell) {
     }
     violations.add_all(elastic::check(cell.nucleus->material), "nucleus.material.");
   }
-  if (cell.mesh_file.empty()) {
+  if (cell.mesh_bytes) {
+    // Read (bounded) by build_cell_mesh; nothing on disk to check.
+  } else if (cell.mesh_file.empty()) {
     if (cell.target_vertex_count < mesh::kMinSphereVertexCount ||
         cell.target_vertex_count > mesh::kMaxSphereVertexCount) {
       violations.add("target_vertex_count", "= " + std::to_string(cell.target_vertex_count) +
@@ -73,8 +75,11 @@ Status validate(const CellParams& cell, std::string_view field_prefix) {
 
 StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix) {
   if (Status s = validate(cell, field_prefix); !s.ok()) return s;
-  const std::string field = std::string(field_prefix) + "mesh_file '" + cell.mesh_file + "'";
-  if (cell.mesh_file.empty()) {
+  const std::string field = cell.mesh_bytes
+                                ? std::string(field_prefix) + "mesh_sha256" +
+                                      (cell.mesh_name.empty() ? "" : " (" + cell.mesh_name + ")")
+                                : std::string(field_prefix) + "mesh_file '" + cell.mesh_file + "'";
+  if (!cell.mesh_bytes && cell.mesh_file.empty()) {
     mesh::SphereMeshOptions options;
     options.radius_m = cell.radius_m;
     options.target_vertex_count = cell.target_vertex_count;
@@ -87,7 +92,10 @@ StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view
     }
     return made;
   }
-  StatusOr<mesh::TetMesh> read = mesh::read_gmsh_msh(cell.mesh_file, 1.0);
+  StatusOr<mesh::TetMesh> read =
+      cell.mesh_bytes ? mesh::read_gmsh_msh_from_bytes(*cell.mesh_bytes,
+                                                       cell.mesh_name.empty() ? "mesh" : cell.mesh_name, 1.0)
+                      : mesh::read_gmsh_msh(cell.mesh_file, 1.0);
   if (!read.ok()) {
     return Status(read.status().code(), field + ": " + read.status().message());
   }

@@ -2,6 +2,7 @@
 // nucleus, mesh) in SI units. Field names follow proto/cellflow/v1/spec.proto.
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -24,18 +25,25 @@ struct CellParams {
   elastic::Material material;
   std::optional<NucleusParams> nucleus;
   int target_vertex_count = mesh::kDefaultSphereVertexCount;  // sphere mesh size, 200 ... 20000
-  std::string mesh_file;  // optional Gmsh .msh v4 ASCII; replaces the generated sphere
+  std::string mesh_file;           // optional Gmsh .msh v4 ASCII; replaces the generated sphere
+  // Optional Gmsh .msh v4 ASCII bytes (an uploaded mesh); replaces the
+  // generated sphere and mesh_file. Read with the bounded reader; mesh_name
+  // stands for the file in messages (e.g. the mesh's hash).
+  std::shared_ptr<const std::string> mesh_bytes;
+  std::string mesh_name;
 };
 
 // Every field out of range, named relative to the cell ("radius_m",
 // "material.poisson_ratio") with its allowed range; a mesh_file must be a
-// regular file (checked with stat, never opened here).
+// regular file (checked with stat, never opened here); mesh_bytes are not
+// looked at here (build_cell_mesh reads them).
 Violations check(const CellParams& cell);
 // check(cell) as a Status, every field under field_prefix.
 Status validate(const CellParams& cell, std::string_view field_prefix);
 
 // Builds (or reads) the cell mesh for `cell`: a TetGen sphere of
-// target_vertex_count vertices, or the Gmsh file mesh_file read in metres
+// target_vertex_count vertices, or the Gmsh bytes mesh_bytes (field
+// "mesh_sha256"), or the Gmsh file mesh_file read in metres
 // (its volume-equivalent radius must match radius_m within a factor 1.25;
 // nucleus tetrahedra of a file take the cytoplasm material unless `nucleus`
 // is set). Errors of the mesher and the reader are carried through with the

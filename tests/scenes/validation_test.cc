@@ -6,7 +6,9 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
+#include <memory>
 #include <string>
 
 #include "physics/mesh/sphere_mesh.h"
@@ -247,6 +249,35 @@ TEST_F(MeshFile, GoodFileRunsLikeTheGeneratedMesh) {
   ASSERT_EQ(b.curve.size(), 2u);
   // the file holds the same mesh (coordinates written with round-trip precision)
   EXPECT_NEAR(b.curve[1].force_n, a.curve[1].force_n, 1e-6 * a.curve[1].force_n);
+}
+
+// An uploaded mesh reaches the physics as bytes (cell.mesh_bytes): the same
+// curve as the file, and errors name mesh_sha256 (never a path).
+TEST_F(MeshFile, MeshBytesRunLikeTheFileAndErrorsNameTheHash) {
+  CompressionParams from_file = good_compression();
+  from_file.max_deformation = 0.1;
+  from_file.load_points = 2;
+  from_file.numerics.threads = 1;
+  from_file.cell.mesh_file = write(sphere_, "sphere.msh");
+  CompressionParams from_bytes = from_file;
+  std::ifstream in(from_file.cell.mesh_file, std::ios::binary);
+  from_bytes.cell.mesh_bytes = std::make_shared<const std::string>(std::istreambuf_iterator<char>(in),
+                                                                   std::istreambuf_iterator<char>());
+  from_bytes.cell.mesh_name = "mesh 0123abcd";
+  from_bytes.cell.mesh_file = "/nonexistent/never-read.msh";  // the bytes take precedence
+  const QuasiStaticResult a = run_compression(from_file);
+  const QuasiStaticResult b = run_compression(from_bytes);
+  ASSERT_TRUE(a.status.ok()) << a.status.to_string();
+  ASSERT_TRUE(b.status.ok()) << b.status.to_string();
+  ASSERT_EQ(b.curve.size(), 2u);
+  EXPECT_EQ(b.curve[1].force_n, a.curve[1].force_n);
+
+  CompressionParams garbage = good_compression();
+  garbage.cell.mesh_bytes = std::make_shared<const std::string>("this is not a mesh\n");
+  const QuasiStaticResult r = run_compression(garbage);
+  EXPECT_EQ(r.status.code(), StatusCode::kInvalidArgument) << r.status.to_string();
+  EXPECT_NE(r.status.message().find("compression.cell.mesh_sha256"), std::string::npos) << r.status.message();
+  EXPECT_EQ(r.status.message().find("this is not"), std::string::npos) << r.status.message();
 }
 
 }  // namespace

@@ -5,15 +5,20 @@
 #include "server/job_service.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "io/h5md.h"
+#include "jobs/common/result_file.h"
 #include "jobs/job_spec.h"
+#include "physics/mesh/sphere_mesh.h"
 #include "worker/job_runner.h"
 
 namespace cellflow::server {
@@ -31,6 +36,9 @@ v1::JobSpec small_compression(int load_points = 4) {
   c->set_load_points(load_points);
   return spec;
 }
+
+// FinishJob checks the HDF5 signature of the upload: a stand-in carries it.
+const std::string kHdf5StandIn = std::string("\x89HDF\r\n\x1a\n", 8) + " HDF5 stand-in";
 
 class JobServiceTest : public ::testing::Test {
  protected:
@@ -192,7 +200,7 @@ TEST_F(JobServiceTest, WatchReplaysThenFollowsLiveUntilTerminal) {
   EXPECT_EQ(leased.last_delivered_sample_index(), -1);
   for (int i = 0; i < 4; ++i) EXPECT_TRUE(report_sample(leased.lease(), i).lease_valid());
   EXPECT_TRUE(watching.load());
-  upload(leased.lease(), "HDF5 stand-in");
+  upload(leased.lease(), kHdf5StandIn);
   v1::FinishJobRequest finish;
   *finish.mutable_lease() = leased.lease();
   auto finished = service_->finish(finish);
@@ -236,7 +244,7 @@ TEST_F(JobServiceTest, WatchReplaysThenFollowsLiveUntilTerminal) {
                                return true;
                              })
                   .ok());
-  EXPECT_EQ(downloaded, "HDF5 stand-in");
+  EXPECT_EQ(downloaded, kHdf5StandIn);
 }
 
 TEST_F(JobServiceTest, StaleWorkerIsFencedAndFinishNeedsUpload) {
@@ -265,6 +273,351 @@ TEST_F(JobServiceTest, ShutdownDrainingRefusesWork) {
   *request.mutable_spec() = small_compression();
   EXPECT_FALSE(service_->submit(request).ok());
   EXPECT_FALSE(lease().found());
+}
+
+// --- hostile input (issue 13) ---
+
+// A spec naming any file of the server's machine is refused at submit:
+// INVALID_ARGUMENT naming the field and saying to upload, nothing of the
+// file (content, existence, size) in the message, and nothing opened (a FIFO
+// would block open(), /dev/zero never ends).
+TEST_F(JobServiceTest, SubmitRefusesMeshFilePathsWithoutTouchingThem) {
+  const fs::path fifo = dir_ / "fifo.msh";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const fs::path directory = dir_ / "a-directory";
+  fs::create_directories(directory);
+  const auto started = std::chrono::steady_clock::now();
+  for (const std::string& path :
+       {std::string("/etc/passwd"), std::string("/proc/self/environ"), directory.string(), fifo.string(),
+        std::string("/dev/zero"), std::string("/nonexistent/cell.msh")}) {
+    v1::SubmitJobRequest request;
+    *request.mutable_spec() = small_compression();
+    request.mutable_spec()->mutable_compression()->mutable_cell()->set_mesh_file(path);
+    auto refused = service_->submit(request);
+    ASSERT_EQ(refused.status().code(), StatusCode::kInvalidArgument) << path;
+    const std::string& message = refused.status().message();
+    EXPECT_NE(message.find("compression.cell.mesh_file"), std::string::npos) << message;
+    EXPECT_NE(message.find("upload"), std::string::npos) << message;
+    EXPECT_EQ(message.find(path), std::string::npos) << message;  // not even the path
+    EXPECT_EQ(message.find("root:"), std::string::npos) << message;
+    EXPECT_EQ(message.find("PATH="), std::string::npos) << message;
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - started, std::chrono::seconds(2));
+  EXPECT_EQ(store_->count(v1::Job::QUEUED), 0);
+  // Inline bytes are not accepted either.
+  v1::SubmitJobRequest inline_bytes;
+  *inline_bytes.mutable_spec() = small_compression();
+  inline_bytes.mutable_spec()->mutable_compression()->mutable_cell()->set_mesh_bytes("$MeshFormat");
+  auto refused = service_->submit(inline_bytes);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("mesh_bytes"), std::string::npos);
+}
+
+std::string sphere_msh_bytes(const fs::path& dir, int vertices) {
+  mesh::SphereMeshOptions o;
+  o.radius_m = 5e-6;
+  o.target_vertex_count = vertices;
+  auto sphere = mesh::make_sphere_mesh(o);
+  EXPECT_TRUE(sphere.ok());
+  const fs::path path = dir / "sphere.msh";
+  EXPECT_TRUE(mesh::write_gmsh_msh(*sphere, path.string()).ok());
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST_F(JobServiceTest, UploadedMeshIsStoredByHashAndNamedBySpec) {
+  const std::string bytes = sphere_msh_bytes(dir_, 300);
+  auto ref = service_->upload_mesh(bytes, "sphere.msh");
+  ASSERT_TRUE(ref.ok()) << ref.status().to_string();
+  EXPECT_EQ(ref->sha256(), sha256_hex(bytes));
+  EXPECT_TRUE(is_sha256_hex(ref->sha256()));
+  EXPECT_EQ(ref->size_bytes(), static_cast<std::int64_t>(bytes.size()));
+  EXPECT_GT(ref->vertex_count(), 200);
+  EXPECT_TRUE(fs::exists(dir_ / "meshes" / (ref->sha256() + ".msh")));
+  EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+
+  v1::SubmitJobRequest request;
+  *request.mutable_spec() = small_compression();
+  request.mutable_spec()->mutable_compression()->mutable_cell()->set_mesh_sha256(ref->sha256());
+  auto submitted = service_->submit(request);
+  ASSERT_TRUE(submitted.ok()) << submitted.status().to_string();
+  // The estimate counts the stored mesh's vertices (its header), not a file size.
+  EXPECT_EQ(submitted->job().estimated_memory_bytes(),
+            jobs::kBaselineBytes + ref->vertex_count() * jobs::kBytesPerVertex);
+  // The stored spec names the hash only; the bytes stay in the mesh store.
+  EXPECT_TRUE(submitted->job().spec().compression().cell().mesh_bytes().empty());
+
+  request.mutable_spec()->mutable_compression()->mutable_cell()->set_mesh_sha256(std::string(64, 'a'));
+  auto unknown = service_->submit(request);
+  EXPECT_EQ(unknown.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(unknown.status().message().find("compression.cell.mesh_sha256"), std::string::npos);
+  request.mutable_spec()->mutable_compression()->mutable_cell()->set_mesh_sha256("../../etc/passwd");
+  EXPECT_EQ(service_->submit(request).status().code(), StatusCode::kInvalidArgument);
+
+  // The worker fetches the bytes of its leased job's mesh, and only that one.
+  const v1::LeaseJobResponse leased = lease();
+  ASSERT_TRUE(leased.found());
+  v1::FetchMeshRequest fetch;
+  *fetch.mutable_lease() = leased.lease();
+  fetch.set_sha256(ref->sha256());
+  std::string fetched;
+  ASSERT_TRUE(service_
+                  ->fetch_mesh(fetch,
+                               [&](const v1::MeshChunk& c) {
+                                 fetched += c.data();
+                                 return true;
+                               })
+                  .ok());
+  EXPECT_EQ(fetched, bytes);
+  fetch.set_sha256(std::string(64, 'b'));
+  EXPECT_FALSE(service_->fetch_mesh(fetch, [](const v1::MeshChunk&) { return true; }).ok());
+}
+
+// Declared counts far beyond the bytes (or the limits) are refused before
+// anything is allocated; not-a-mesh and oversized uploads too.
+TEST_F(JobServiceTest, HostileMeshUploadsAreRefusedBeforeAllocation) {
+  const std::string huge =
+      "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2000000000 1 2000000000\n2 1 0 2000000000\n";
+  const auto started = std::chrono::steady_clock::now();
+  auto refused = service_->upload_mesh(huge, "huge.msh");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_TRUE(refused.status().code() == StatusCode::kResourceExhausted ||
+              refused.status().code() == StatusCode::kInvalidArgument)
+      << refused.status().to_string();
+  EXPECT_LT(std::chrono::steady_clock::now() - started, std::chrono::seconds(1));
+  auto not_mesh = service_->upload_mesh("root:x:0:0:root:/root:/bin/bash\n", "passwd");
+  EXPECT_EQ(not_mesh.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(not_mesh.status().message().find("root:x"), std::string::npos) << not_mesh.status().message();
+
+  MeshStore small(dir_ / "small-meshes", 100);
+  EXPECT_EQ(small.put(std::string(101, ' '), "big").status().code(), StatusCode::kResourceExhausted);
+  EXPECT_FALSE(fs::exists(dir_ / "meshes") && !fs::is_empty(dir_ / "meshes"));
+}
+
+v1::WorkerReport progress_report(const v1::Lease& lease, double fraction) {
+  v1::WorkerReport report;
+  *report.mutable_lease() = lease;
+  report.mutable_progress()->set_fraction_done(fraction);
+  report.mutable_progress()->set_elapsed_s(1.0);
+  report.mutable_progress()->set_estimated_remaining_s(std::nan(""));
+  return report;
+}
+
+// Forged samples (an index past the job's range, a gap, a negative index)
+// and NaN progress get an error in their ack; the lease, the stream and the
+// job go on, and the real samples still arrive in order.
+TEST_F(JobServiceTest, UntrustedReportsAreRefusedWithoutHarmingTheJob) {
+  const std::string id = submit(small_compression(4));
+  const v1::LeaseJobResponse leased = lease();
+  ASSERT_TRUE(leased.found());
+  for (int forged : {1000, 4, -1, 2}) {
+    const v1::ReportAck ack = report_sample(leased.lease(), forged);
+    EXPECT_TRUE(ack.lease_valid()) << forged;
+    EXPECT_FALSE(ack.error().empty()) << forged;
+    EXPECT_NE(ack.error().find("index"), std::string::npos) << ack.error();
+  }
+  auto nan = service_->report(progress_report(leased.lease(), std::nan("")));
+  ASSERT_TRUE(nan.ok());
+  EXPECT_TRUE(nan->lease_valid());
+  EXPECT_NE(nan->error().find("fraction_done"), std::string::npos);
+  auto inf = service_->report(progress_report(leased.lease(), INFINITY));
+  ASSERT_TRUE(inf.ok());
+  EXPECT_FALSE(inf->error().empty());
+  auto good = service_->report(progress_report(leased.lease(), 0.5));
+  ASSERT_TRUE(good.ok());
+  EXPECT_TRUE(good->error().empty()) << good->error();
+  for (int i = 0; i < 4; ++i) {
+    const v1::ReportAck ack = report_sample(leased.lease(), i);
+    EXPECT_TRUE(ack.lease_valid());
+    EXPECT_TRUE(ack.error().empty()) << ack.error();
+  }
+  // A resend of a delivered index is no error (the reporter resends after a reconnect).
+  EXPECT_TRUE(report_sample(leased.lease(), 2).error().empty());
+  auto job = service_->get(id);
+  ASSERT_TRUE(job.ok());
+  EXPECT_EQ(job->state(), v1::Job::RUNNING);
+  EXPECT_DOUBLE_EQ(job->fraction_done(), 0.5);
+  EXPECT_EQ(job->estimated_remaining_s(), -1.0);  // NaN remaining time: unknown
+  auto events = store_->events_after(1, 0, 100);
+  ASSERT_TRUE(events.ok());
+  std::vector<int> indices;
+  for (const auto& e : *events)
+    if (e.has_force_sample()) indices.push_back(e.force_sample().index());
+  EXPECT_EQ(indices, (std::vector<int>{0, 1, 2, 3}));
+  upload(leased.lease(), kHdf5StandIn);
+  v1::FinishJobRequest finish;
+  *finish.mutable_lease() = leased.lease();
+  EXPECT_TRUE(service_->finish(finish).ok());
+}
+
+TEST_F(JobServiceTest, NonHdf5UploadCannotFinishTheJob) {
+  const std::string id = submit(small_compression());
+  const v1::LeaseJobResponse leased = lease();
+  upload(leased.lease(), std::string("38 bytes of something that is not HDF5"));
+  v1::FinishJobRequest finish;
+  *finish.mutable_lease() = leased.lease();
+  auto refused = service_->finish(finish);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("HDF5"), std::string::npos);
+  EXPECT_EQ(service_->get(id)->state(), v1::Job::RUNNING);
+  upload(leased.lease(), kHdf5StandIn);  // the real result
+  auto finished = service_->finish(finish);
+  ASSERT_TRUE(finished.ok()) << finished.status().to_string();
+  EXPECT_EQ(finished->state(), v1::Job::SUCCEEDED);
+}
+
+TEST_F(JobServiceTest, UploadOverTheJobsLimitIsRefused) {
+  JobServiceOptions options = service_->options();
+  options.upload_memory_factor = 1e-6;  // about 70 bytes for this job
+  options.upload_slack_bytes = 0;
+  JobService strict(*store_, notifier_, options);
+  v1::SubmitJobRequest request;
+  *request.mutable_spec() = small_compression();
+  const std::string id = strict.submit(request)->job().id();
+  v1::LeaseJobRequest lease_request;
+  lease_request.set_worker_id("w");
+  const v1::LeaseJobResponse leased = *strict.lease(lease_request, [] { return false; });
+  auto up = strict.begin_upload(leased.lease());
+  ASSERT_TRUE(up.ok());
+  EXPECT_TRUE((*up)->write(0, std::string(50, 'x')).ok());
+  EXPECT_EQ((*up)->write(50, std::string(50, 'x')).code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(strict.get(id)->state(), v1::Job::RUNNING);
+}
+
+TEST_F(JobServiceTest, FailReasonWithInvalidUtf8IsSanitisedNotRefused) {
+  const std::string id = submit(small_compression());
+  const v1::LeaseJobResponse leased = lease();
+  v1::FailJobRequest fail;
+  *fail.mutable_lease() = leased.lease();
+  fail.set_reason("load step 3: \xff\xfe\xc0\xaf bad bytes " + std::string(10000, 'x'));
+  auto failed = service_->fail(fail);
+  ASSERT_TRUE(failed.ok()) << failed.status().to_string();
+  EXPECT_EQ(failed->state(), v1::Job::FAILED);
+  auto job = service_->get(id);
+  ASSERT_TRUE(job.ok());
+  EXPECT_LE(job->reason().size(), 4096u);
+  EXPECT_EQ(job->reason().rfind("load step 3: ", 0), 0u) << job->reason().substr(0, 40);
+  EXPECT_EQ(sanitize_text(job->reason(), 4096), job->reason());  // valid UTF-8: unchanged
+  v1::Job parsed;
+  EXPECT_TRUE(parsed.ParseFromString(job->SerializeAsString()));  // a client can read it
+}
+
+TEST(SanitizeTextTest, ValidUtf8BoundedAtCharacterBoundaries) {
+  EXPECT_EQ(sanitize_text("plain", 100), "plain");
+  EXPECT_EQ(sanitize_text("\xc3\xa9t\xc3\xa9", 100), "\xc3\xa9t\xc3\xa9");
+  EXPECT_EQ(sanitize_text("a\xff"
+                          "b",
+                          100),
+            "a\xef\xbf\xbd"
+            "b");
+  EXPECT_EQ(sanitize_text("\xc0\xaf", 100), "\xef\xbf\xbd\xef\xbf\xbd");          // overlong '/'
+  EXPECT_EQ(sanitize_text("\xed\xa0\x80", 100).find("\xed"), std::string::npos);  // surrogate
+  EXPECT_EQ(sanitize_text("a\x01"
+                          "b",
+                          100),
+            "a b");
+  const std::string cut = sanitize_text(std::string(10, '\xe2') + "\x82\xac" + std::string(100, 'x'), 8);
+  EXPECT_LE(cut.size(), 8u);
+  EXPECT_EQ(sanitize_text(cut, 8), cut);
+}
+
+TEST_F(JobServiceTest, NamesAreBoundedAtSubmit) {
+  v1::SubmitJobRequest request;
+  *request.mutable_spec() = small_compression();
+  request.mutable_spec()->set_name(std::string(4 << 20, 'n'));
+  auto refused = service_->submit(request);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(refused.status().message().rfind("name:", 0), 0u);
+  EXPECT_LT(refused.status().message().size(), 200u);
+  request.mutable_spec()->set_name(std::string(1024, 'n'));
+  EXPECT_TRUE(service_->submit(request).ok());
+}
+
+// A worker that only heartbeats cannot hold a job past --max-run-time-s.
+TEST_F(JobServiceTest, HeartbeatsDoNotHoldAJobPastTheRunTimeLimit) {
+  std::atomic<std::int64_t> clock{1'000'000};
+  JobServiceOptions options = service_->options();
+  options.now_ms = [&] { return clock.load(); };
+  options.max_run_time_s = 10;
+  JobService timed(*store_, notifier_, options);
+  v1::SubmitJobRequest request;
+  *request.mutable_spec() = small_compression();
+  const std::string id = timed.submit(request)->job().id();
+  v1::LeaseJobRequest lease_request;
+  lease_request.set_worker_id("heartbeats-only");
+  const v1::LeaseJobResponse leased = *timed.lease(lease_request, [] { return false; });
+  ASSERT_TRUE(leased.found());
+  v1::WorkerReport beat;
+  *beat.mutable_lease() = leased.lease();
+  beat.mutable_heartbeat();
+  for (int s = 0; s < 10; ++s) {
+    clock += 1000;
+    ASSERT_TRUE(timed.report(beat)->lease_valid());
+    EXPECT_EQ(timed.reap_expired_leases(), 0);
+  }
+  clock += 1500;
+  EXPECT_TRUE(timed.report(beat)->lease_valid());  // the lease itself is fresh
+  EXPECT_EQ(timed.reap_expired_leases(), 1);
+  auto job = timed.get(id);
+  ASSERT_TRUE(job.ok());
+  EXPECT_EQ(job->state(), v1::Job::QUEUED);
+  EXPECT_NE(job->reason().find("--max-run-time-s"), std::string::npos) << job->reason();
+  EXPECT_FALSE(timed.report(beat)->lease_valid());
+}
+
+TEST_F(JobServiceTest, DeleteJobRemovesRowsAndFiles) {
+  const std::string id = submit(small_compression());
+  EXPECT_EQ(service_->delete_job(id).code(), StatusCode::kFailedPrecondition);  // queued
+  const v1::LeaseJobResponse leased = lease();
+  EXPECT_EQ(service_->delete_job(id).code(), StatusCode::kFailedPrecondition);  // running
+  upload(leased.lease(), kHdf5StandIn);
+  v1::FinishJobRequest finish;
+  *finish.mutable_lease() = leased.lease();
+  ASSERT_TRUE(service_->finish(finish).ok());
+  ASSERT_TRUE(fs::exists(service_->result_path(1)));
+  ASSERT_TRUE(service_->delete_job(id).ok());
+  EXPECT_EQ(service_->get(id).status().code(), StatusCode::kNotFound);
+  EXPECT_FALSE(fs::exists(service_->result_path(1)));
+  EXPECT_TRUE(store_->events_after(1, 0, 100)->empty());
+  EXPECT_EQ(service_->delete_job(id).code(), StatusCode::kNotFound);
+}
+
+// Uploads of an attempt that lost its lease are removed, and every .part at
+// server start or stop.
+TEST_F(JobServiceTest, PartialUploadsAreRemoved) {
+  const std::string id = submit(small_compression());
+  const v1::LeaseJobResponse leased = lease();
+  upload(leased.lease(), "partial");
+  auto parts = [&] {
+    int n = 0;
+    for (const auto& entry : fs::directory_iterator(dir_ / "results"))
+      n += entry.path().string().ends_with(".part") ? 1 : 0;
+    return n;
+  };
+  EXPECT_EQ(parts(), 1);
+  ASSERT_TRUE(service_->cancel(id).ok());
+  EXPECT_EQ(parts(), 0);
+  std::ofstream(dir_ / "results" / "job-9.attempt-1.0123.h5.part") << "left by a crash";
+  EXPECT_EQ(service_->remove_all_uploads(), 1);
+  EXPECT_EQ(parts(), 0);
+}
+
+// Store: the attempts of jobs RUNNING when the server stopped are not charged.
+TEST_F(JobServiceTest, RestartDoesNotChargeTheRunningAttempt) {
+  StoreOptions store_options;
+  store_options.path = (dir_ / "one-attempt.sqlite").string();
+  store_options.max_attempts = 1;
+  auto store = Store::open(store_options);
+  ASSERT_TRUE(store.ok());
+  auto submitted = (*store)->submit(small_compression(), "", 0, 1000);
+  ASSERT_TRUE(submitted.ok());
+  ASSERT_TRUE((*store)->claim("w", 1000, 1000)->has_value());
+  // The server restarts: the lease then expires without a hand-back.
+  ASSERT_TRUE((*store)->forgive_running_attempts().ok());
+  auto changed = (*store)->requeue_expired(5000);
+  ASSERT_TRUE(changed.ok());
+  ASSERT_EQ(changed->size(), 1u);
+  EXPECT_EQ(changed->front().state(), v1::Job::QUEUED);  // not FAILED: the attempt was not charged
 }
 
 // The worker's runner in process: the samples it reports and the file it

@@ -243,6 +243,21 @@ class FakeWorkerStub final : public v1::WorkerService::StubInterface {
       grpc::ClientContext*, const v1::ReleaseJobRequest&, grpc::CompletionQueue*) override {
     return nullptr;
   }
+  // The fake's jobs name no uploaded mesh: the worker never fetches one.
+  grpc::ClientReaderInterface<v1::MeshChunk>* FetchMeshRaw(grpc::ClientContext*,
+                                                           const v1::FetchMeshRequest&) override {
+    return nullptr;
+  }
+  grpc::ClientAsyncReaderInterface<v1::MeshChunk>* AsyncFetchMeshRaw(grpc::ClientContext*,
+                                                                     const v1::FetchMeshRequest&,
+                                                                     grpc::CompletionQueue*, void*) override {
+    return nullptr;
+  }
+  grpc::ClientAsyncReaderInterface<v1::MeshChunk>* PrepareAsyncFetchMeshRaw(grpc::ClientContext*,
+                                                                            const v1::FetchMeshRequest&,
+                                                                            grpc::CompletionQueue*) override {
+    return nullptr;
+  }
 
   std::shared_ptr<FakeServer> server_;
 };

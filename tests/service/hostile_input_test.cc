@@ -12,14 +12,19 @@
 
 #include "cellflow/v1/worker.grpc.pb.h"
 #include "physics/mesh/sphere_mesh.h"
+#include "rpc/rpc.h"
 #include "server/store.h"
 #include "tests/service/service_harness.h"
 
 namespace cellflow::testing {
 namespace {
 
-std::unique_ptr<v1::WorkerService::Stub> worker_stub(const std::string& address) {
-  return v1::WorkerService::NewStub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+// A worker-API stub with the worker credential: the forger below is a
+// compromised worker, the strongest caller the worker listener admits.
+std::unique_ptr<v1::WorkerService::Stub> worker_stub(const std::string& address, const std::string& token) {
+  rpc::ChannelOptions channel;
+  channel.bearer_token = token;
+  return v1::WorkerService::NewStub(rpc::make_channel(address, channel));
 }
 
 template <class Call>
@@ -118,7 +123,7 @@ TEST_F(ServiceTest, CliUploadsTheMeshAWorkerRunsItAndDeleteRemovesTheJob) {
 TEST_F(ServiceTest, ForgedWorkerCallsDoNotHarmTheJob) {
   start_server(0);
   const std::string id = submit(small_compression(4));
-  auto stub = worker_stub(address_);
+  auto stub = worker_stub(worker_address_, worker_token_);
   v1::LeaseJobRequest lease_request;
   lease_request.set_worker_id("forger");
   lease_request.set_wait_s(5);

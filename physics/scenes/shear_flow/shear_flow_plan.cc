@@ -38,6 +38,10 @@ constexpr double kMinShearRatePerS = 1e-6, kMaxShearRatePerS = 1e7;
 // the stiffness check refuses the cell anyway; above 100 the cell is a
 // thread that no lattice resolves (the kernel warning starts at Ca ~ 1.6).
 constexpr double kMinCapillaryNumber = 1e-6, kMaxCapillaryNumber = 100.0;
+// A Ca derived from a shear rate (already in its own range) only guards the
+// arithmetic here: a cell too stiff for the flow gets the stiffness check's
+// message at the start of the run, which names the options to change.
+constexpr double kMinDerivedCapillaryNumber = 1e-15;
 // tau: nu_lb = (tau - 1/2) / 3 > 1/600: below, the collision is at its
 // stability edge and the steps per strain (~ 1 / nu_lb) explode.
 constexpr double kMinRelaxationTime = 0.505;
@@ -49,12 +53,13 @@ constexpr double kMinMaxMach = 1e-3;
 constexpr double kMaxStrain = 1e4;
 constexpr double kMaxTimeS = 1e7;
 // Samples and snapshots: every 1e-3 strain unit at most often, at most 1e5
-// samples (the result keeps each in memory) and 1000 snapshots per run (each
-// writes the mesh, or with fluid_snapshots the lattice's velocity field).
+// samples (the result keeps each in memory) and 10^4 snapshots per run (each
+// writes the mesh positions, or with fluid_snapshots also the lattice's
+// velocity field; a run that reaches its steady state stops long before).
 constexpr double kMinSampleEveryStrain = 1e-3;
 constexpr double kMaxSamples = 1e5;
 constexpr double kMinSnapshotEveryStrain = 1e-3;
-constexpr double kMaxSnapshots = 1000;
+constexpr double kMaxSnapshots = 1e4;
 // Work: lattice node updates (nodes x time steps up to max_strain or
 // max_time_s); 4e12 is about a day on one core (~50 M updates/s) and a
 // few hours on a node. The default flow job needs 1.4e10.
@@ -97,13 +102,14 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
     setup.capillary_number = eta * params.shear_rate_per_s / setup.shear_modulus_pa;
   }
   const double gammadot = setup.shear_rate_per_s;
-  if (!(setup.capillary_number >= kMinCapillaryNumber && setup.capillary_number <= kMaxCapillaryNumber)) {
+  if (!(setup.capillary_number >= kMinDerivedCapillaryNumber &&
+        setup.capillary_number <= kMaxCapillaryNumber)) {
     // only a shear rate gets here: a set Ca was checked by validate()
     return invalid_argument(prefix + "shear_rate_per_s = " + number_text(params.shear_rate_per_s) +
                             " gives Ca = eta gammadot / mu = " + number_text(setup.capillary_number, 6) +
                             " (mu = " + number_text(setup.shear_modulus_pa, 6) + " Pa of " + prefix +
                             "cell.material), which must lie in " +
-                            interval(kMinCapillaryNumber, kMaxCapillaryNumber));
+                            interval(kMinDerivedCapillaryNumber, kMaxCapillaryNumber));
   }
   // Re_p = rho gammadot R^2 / eta
   setup.reynolds_number_physical = params.fluid_density_kg_m3 * gammadot * radius * radius / eta;

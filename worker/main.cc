@@ -30,6 +30,9 @@ int main(int argc, char** argv) {
   app.add_option("--debug-delay-per-point-ms", options.debug_delay_per_point_ms,
                  "testing aid: pause after each load point")
       ->capture_default_str();
+  app.add_option("--library-dir", options.library_dir,
+                 "fit jobs: the curve library's cache directory (default $CELLFLOW_LIBRARY_DIR, "
+                 "$XDG_CACHE_HOME/cellflow/curves or ~/.cache/cellflow/curves)");
   app.add_flag("--keep-results", options.keep_results, "keep the local copy of uploaded results");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   CLI11_PARSE(app, argc, argv);

@@ -155,6 +155,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   run_options.result_path = temporary.string();
   run_options.threads = options_.threads;
   run_options.debug_delay_per_point_ms = options_.debug_delay_per_point_ms;
+  run_options.library_dir = options_.library_dir;
   const RunOutcome outcome = run_job(registry_, leased.spec(), run_options, events);
 
   // Every sample reaches the server before the attempt ends.

@@ -27,6 +27,7 @@ struct WorkerOptions {
   int threads = 0;                   // OpenMP threads for the physics; 0: default
   int debug_delay_per_point_ms = 0;  // testing aid, see RunOptions
   bool keep_results = false;         // keep the local copy of uploaded results
+  std::string library_dir;           // fit jobs' curve library; empty: jobs::default_library_dir()
 };
 
 class Worker {

@@ -32,7 +32,8 @@ bool strictly_increasing(const std::vector<double>& x, std::size_t* bad) {
 
 }  // namespace
 
-StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m, const FitInputOptions& options) {
+StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m,
+                                       const FitInputOptions& options) {
   afm::ReadOptions read;
   read.spring_constant_n_per_m = options.spring_constant_n_per_m;
   read.sensitivity_m_per_v = options.sensitivity_m_per_v;
@@ -45,13 +46,15 @@ StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m,
     return file_error(path, "the approach segment holds " + std::to_string(seg->size()) +
                                 " samples: too few for a baseline, a contact and a fit");
   }
-  const bool derived_tip = !seg->tip_position_m.empty() && !seg->deflection_m.empty() && !seg->height_m.empty();
+  const bool derived_tip =
+      !seg->tip_position_m.empty() && !seg->deflection_m.empty() && !seg->height_m.empty();
   const std::vector<double>& x_read = !seg->tip_position_m.empty() ? seg->tip_position_m : seg->height_m;
   if (x_read.size() != seg->force_n.size()) return file_error(path, "no tip position or height channel");
   for (std::size_t i = 0; i < x_read.size(); ++i) {
     if (!std::isfinite(x_read[i]) || !std::isfinite(seg->force_n[i])) {
-      return file_error(path, "approach sample " + std::to_string(i) + ": position " + number_text(x_read[i]) +
-                                  " m, force " + number_text(seg->force_n[i]) + " N: not a finite number");
+      return file_error(path, "approach sample " + std::to_string(i) + ": position " +
+                                  number_text(x_read[i]) + " m, force " + number_text(seg->force_n[i]) +
+                                  " N: not a finite number");
     }
   }
   // The order of the samples: as read, or sorted by tip position when the
@@ -64,19 +67,39 @@ StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m,
     const bool height_ok = derived_tip && (strictly_increasing(seg->height_m, &bad_height) ||
                                            std::is_sorted(seg->height_m.begin(), seg->height_m.end()));
     if (!height_ok) {
-      return file_error(path, "approach sample " + std::to_string(bad) + ": position " + number_text(x_read[bad]) +
-                                  " m is not above sample " + std::to_string(bad - 1) + "'s " +
-                                  number_text(x_read[bad - 1]) +
+      return file_error(path, "approach sample " + std::to_string(bad) + ": position " +
+                                  number_text(x_read[bad]) + " m is not above sample " +
+                                  std::to_string(bad - 1) + "'s " + number_text(x_read[bad - 1]) +
                                   " m: the deformation must increase over the approach (non-monotonic)");
     }
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return x_read[a] < x_read[b]; });
-    order.erase(std::unique(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return x_read[a] == x_read[b]; }),
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return x_read[a] < x_read[b]; });
+    order.erase(std::unique(order.begin(), order.end(),
+                            [&](std::size_t a, std::size_t b) { return x_read[a] == x_read[b]; }),
                 order.end());
   }
   std::vector<double> x, f;
   for (std::size_t i : order) {
     x.push_back(x_read[i]);
     f.push_back(seg->force_n[i]);
+  }
+  // Negative forces (beyond the free cantilever's noise and 1 % of the
+  // maximum) against the baseline of the free part: a sign or baseline
+  // problem the contact estimate would only hide.
+  const std::size_t free_end = std::max<std::size_t>(3, x.size() * 2 / 5);
+  if (StatusOr<afm::Baseline> free = afm::fit_baseline(x, f, 0, free_end, true); free.ok()) {
+    const std::vector<double> g = afm::subtract_baseline(x, f, *free);
+    const double g_max = *std::max_element(g.begin(), g.end());
+    const double limit = 3.0 * free->noise_sigma_n + 0.01 * std::max(g_max, 0.0);
+    for (std::size_t k = 0; k < g.size(); ++k) {
+      if (g[k] < -limit) {
+        return file_error(path, "approach sample " + std::to_string(order[k]) +
+                                    ": force_n = " + number_text(g[k], 4) +
+                                    " N against the free baseline is negative (beyond 3 noise sigma + 1 % of "
+                                    "the maximum force = " +
+                                    number_text(limit, 4) + " N): check the force's sign and the baseline");
+      }
+    }
   }
   StatusOr<afm::ContactPoint> contact = afm::contact_by_baseline_deviation(x, f, {});
   if (!contact.ok()) return file_error(path, "contact point estimate: " + contact.status().message());

@@ -29,12 +29,13 @@ struct FitInputOptions {
 struct FitInputCurve {
   std::string file;
   v1::FitCurve curve;
-  double contact_estimate_m = 0.0;  // tip position of the contact estimate, in the file's coordinates
+  double contact_estimate_m = 0.0;   // tip position of the contact estimate, in the file's coordinates
   std::vector<int> approach_sample;  // per sent sample: its index in the file's approach segment
 };
 
 // `radius_m` > 0: the cell radius (the pre-contact margin is 0.1 of its diameter).
-StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m, const FitInputOptions& options);
+StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m,
+                                       const FitInputOptions& options);
 
 // The client's check before submitting: jobs::to_fit_plan over the spec with
 // an error that names the file and the approach sample (not fit.curves[i].force_n[j]).

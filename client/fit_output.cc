@@ -40,7 +40,9 @@ StatusOr<json> report_document(const std::string& fit_json, const FitReport& rep
   out["fit_range_deformation"] = doc["fit_range_deformation"];
   out["library"] = doc["library"];
   out["simulations_run"] = doc["simulations_run"];
-  auto at = [&](std::size_t i) { return i < report.contact_estimates_m.size() ? report.contact_estimates_m[i] : 0.0; };
+  auto at = [&](std::size_t i) {
+    return i < report.contact_estimates_m.size() ? report.contact_estimates_m[i] : 0.0;
+  };
   auto file = [&](std::size_t i, const json& part) {
     return i < report.files.size() ? json(report.files[i]) : part.value("name", json(""));
   };
@@ -93,8 +95,8 @@ std::string estimate_text(const json& e, double scale, int digits) {
   if (e.value("fixed", false)) {
     std::snprintf(buffer, sizeof buffer, "%.*g (fixed)", digits, v);
   } else if (e["lower"].is_number() && e["upper"].is_number()) {
-    std::snprintf(buffer, sizeof buffer, "%.*g [%.*g, %.*g]%s", digits, v, digits, e["lower"].get<double>() * scale,
-                  digits, e["upper"].get<double>() * scale,
+    std::snprintf(buffer, sizeof buffer, "%.*g [%.*g, %.*g]%s", digits, v, digits,
+                  e["lower"].get<double>() * scale, digits, e["upper"].get<double>() * scale,
                   e.value("lower_at_bound", false) || e.value("upper_at_bound", false) ? "*" : "");
   } else {
     std::snprintf(buffer, sizeof buffer, "%.*g", digits, v);
@@ -134,12 +136,12 @@ StatusOr<std::vector<FitCurveSeries>> read_fit_curves(const std::string& h5_path
       if (s.sample.empty()) s.sample.assign(t->step.begin(), t->step.end());
       return Status::ok_status();
     };
-    for (auto [what, into, required] : {std::tuple{"indentation_m", &s.indentation_m, true},
-                                        std::tuple{"deformation", &s.deformation, true},
-                                        std::tuple{"force_n", &s.force_n, true},
-                                        std::tuple{"model_force_n", &s.model_force_n, true},
-                                        std::tuple{"hertz_force_n", &s.hertz_force_n, true},
-                                        std::tuple{"joint_model_force_n", &s.joint_model_force_n, false}}) {
+    for (auto [what, into, required] :
+         {std::tuple{"indentation_m", &s.indentation_m, true},
+          std::tuple{"deformation", &s.deformation, true}, std::tuple{"force_n", &s.force_n, true},
+          std::tuple{"model_force_n", &s.model_force_n, true},
+          std::tuple{"hertz_force_n", &s.hertz_force_n, true},
+          std::tuple{"joint_model_force_n", &s.joint_model_force_n, false}}) {
       if (Status st = read(what, *into, required); !st.ok()) return st;
     }
     out.push_back(std::move(s));
@@ -153,9 +155,10 @@ std::string fit_curves_csv(const std::vector<FitCurveSeries>& curves) {
   for (std::size_t c = 0; c < curves.size(); ++c) {
     const FitCurveSeries& s = curves[c];
     for (std::size_t i = 0; i < s.deformation.size(); ++i) {
-      out += std::to_string(c) + "," + s.name + "," + std::to_string(s.sample[i]) + "," + csv_value(s.indentation_m[i]) +
-             "," + csv_value(s.deformation[i]) + "," + csv_value(s.force_n[i]) + "," + csv_value(s.model_force_n[i]) +
-             "," + csv_value(s.hertz_force_n[i]) + "," +
+      out += std::to_string(c) + "," + s.name + "," + std::to_string(s.sample[i]) + "," +
+             csv_value(s.indentation_m[i]) + "," + csv_value(s.deformation[i]) + "," +
+             csv_value(s.force_n[i]) + "," + csv_value(s.model_force_n[i]) + "," +
+             csv_value(s.hertz_force_n[i]) + "," +
              (i < s.joint_model_force_n.size() ? csv_value(s.joint_model_force_n[i]) : std::string()) + "\n";
     }
   }
@@ -178,7 +181,8 @@ std::string fit_svg(const std::vector<FitCurveSeries>& curves, const std::string
     double scale;
     const char* name;
   };
-  const Prefix prefixes[] = {{1e-15, "fN"}, {1e-12, "pN"}, {1e-9, "nN"}, {1e-6, "\u00b5N"}, {1e-3, "mN"}, {1.0, "N"}};
+  const Prefix prefixes[] = {{1e-15, "fN"},     {1e-12, "pN"}, {1e-9, "nN"},
+                             {1e-6, "\u00b5N"}, {1e-3, "mN"},  {1.0, "N"}};
   Prefix unit = prefixes[2];
   for (const Prefix& p : prefixes) {
     if (f_max >= p.scale) unit = p;
@@ -195,7 +199,8 @@ std::string fit_svg(const std::vector<FitCurveSeries>& curves, const std::string
   svg += svg_axes(
       frame, xt, yt, px, [&](double t) { return py(t * unit.scale); }, "deformation \u03b4 / 2R",
       "force (" + std::string(unit.name) + ")");
-  const char* colors[] = {"#1f77b4", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22", "#7f7f7f"};
+  const char* colors[] = {"#1f77b4", "#2ca02c", "#9467bd", "#8c564b",
+                          "#e377c2", "#17becf", "#bcbd22", "#7f7f7f"};
   std::vector<PlotSeries> legend;
   for (std::size_t c = 0; c < curves.size(); ++c) {
     const FitCurveSeries& s = curves[c];
@@ -249,8 +254,9 @@ StatusOr<std::string> fit_table(const std::string& fit_json, const FitReport& re
   out += line;
   auto row = [&](const std::string& name, const json& f, const json& contact) {
     std::snprintf(line, sizeof line, "%-32s %-28s %-24s %-28s %-9s %s\n", name.c_str(),
-                  estimate_text(f["youngs_modulus_pa"], 1.0, 4).c_str(), estimate_text(f["mooney_rivlin_w"], 1.0, 3).c_str(),
-                  estimate_text(contact, 1e6, 4).c_str(), number_or_dash(f["rms_relative_residual"], "%.3g").c_str(),
+                  estimate_text(f["youngs_modulus_pa"], 1.0, 4).c_str(),
+                  estimate_text(f["mooney_rivlin_w"], 1.0, 3).c_str(), estimate_text(contact, 1e6, 4).c_str(),
+                  number_or_dash(f["rms_relative_residual"], "%.3g").c_str(),
                   number_or_dash(f["hertz_youngs_modulus_pa"], "%.4g").c_str());
     out += line;
   };

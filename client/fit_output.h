@@ -25,7 +25,8 @@ struct FitCurveSeries {
 
 StatusOr<std::vector<FitCurveSeries>> read_fit_curves(const std::string& h5_path);
 
-// Columns curve,name,sample,indentation_m,deformation,force_n,model_force_n,hertz_force_n,joint_model_force_n.
+// Columns
+// curve,name,sample,indentation_m,deformation,force_n,model_force_n,hertz_force_n,joint_model_force_n.
 std::string fit_curves_csv(const std::vector<FitCurveSeries>& curves);
 
 // Force against deformation: per curve the data (markers), the model (line) and Hertz (dashed).

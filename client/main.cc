@@ -122,19 +122,23 @@ struct FitFlags {
   double radius_m = 0, probe_radius_m = 0, tip_radius_m = 0, w = 1, poisson_ratio = 0.48;
   double spring_constant = 0, sensitivity = 0, library_max_deformation = 0, contact_window_radii = 0;
   int vertices = 0, load_points = 0;
-  bool w_free = false, watch = false, json = false, no_per_curve = false, no_joint = false, print_spec = false;
+  bool w_free = false, watch = false, json = false, no_per_curve = false, no_joint = false,
+       print_spec = false;
 
   void add(CLI::App* app) {
-    app->add_option("files", files, "force-curve files (JPK .jpk-force, AFM Workshop CSV, NT-MDT txt, tab export, "
-                                    "CSV/TSV with named columns)")
+    app->add_option("files", files,
+                    "force-curve files (JPK .jpk-force, AFM Workshop CSV, NT-MDT txt, tab export, "
+                    "CSV/TSV with named columns)")
         ->required();
-    app->add_option("--geometry", geometry, "plates (flat cantilever / FluidFM), probe (colloidal probe), tip")
+    app->add_option("--geometry", geometry,
+                    "plates (flat cantilever / FluidFM), probe (colloidal probe), tip")
         ->required()
         ->check(CLI::IsMember({"plates", "probe", "tip"}));
     app->add_option("--radius-m", radius_m, "cell radius R in metres")->required();
     app->add_option("--probe-radius-m", probe_radius_m, "colloidal probe radius (geometry probe)");
     app->add_option("--tip-radius-m", tip_radius_m, "tip apex radius (geometry tip)");
-    app->add_option("--model", model, "mooney-rivlin (default), neo-hookean (w = 1) or hertz (no simulations)")
+    app->add_option("--model", model,
+                    "mooney-rivlin (default), neo-hookean (w = 1) or hertz (no simulations)")
         ->check(CLI::IsMember({"mooney-rivlin", "neo-hookean", "hertz"}));
     auto* w_option = app->add_option("--w", w, "fixed Mooney-Rivlin ratio w in [0, 1]");
     app->add_flag("--w-free", w_free, "fit w in [0, 1]")->excludes(w_option);
@@ -142,7 +146,8 @@ struct FitFlags {
     app->add_option("--range", range, "fit range MIN:MAX (default -0.05:0.7 in deformation x/2R)");
     app->add_option("--range-unit", range_unit, "deformation (x/2R) or m (metres past the contact estimate)")
         ->check(CLI::IsMember({"deformation", "m"}));
-    app->add_option("--spring-constant", spring_constant, "cantilever spring constant N/m (overrides the file)");
+    app->add_option("--spring-constant", spring_constant,
+                    "cantilever spring constant N/m (overrides the file)");
     app->add_option("--sensitivity", sensitivity, "deflection sensitivity m/V (overrides the file)");
     app->add_option("--vertices", vertices, "library numerics: sphere mesh vertices (server default 3000)");
     app->add_option("--load-points", load_points, "library numerics: points per curve (server default 30)");
@@ -156,8 +161,9 @@ struct FitFlags {
     app->add_option("--name", name, "a name for the job");
     app->add_flag("--watch", watch, "print the job's events while it runs");
     app->add_flag("--json", json, "print the fit as JSON (per curve and joint, 95 % bounds)");
-    app->add_flag("--print-spec", print_spec,
-                  "print the job spec (with the curves as data) as JSON and exit: for cellflow-run or submit --spec");
+    app->add_flag(
+        "--print-spec", print_spec,
+        "print the job spec (with the curves as data) as JSON and exit: for cellflow-run or submit --spec");
   }
 };
 
@@ -167,16 +173,20 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
     return ExitCode::kExitUsage;
   }
   if (flags.geometry == "probe" && !app->count("--probe-radius-m")) {
-    std::fprintf(stderr, "cellflow: --probe-radius-m must be given for --geometry probe (the colloidal probe's radius)\n");
+    std::fprintf(
+        stderr,
+        "cellflow: --probe-radius-m must be given for --geometry probe (the colloidal probe's radius)\n");
     return ExitCode::kExitUsage;
   }
   if (flags.geometry == "tip" && !app->count("--tip-radius-m")) {
-    std::fprintf(stderr, "cellflow: --tip-radius-m must be given for --geometry tip (the tip's apex radius)\n");
+    std::fprintf(stderr,
+                 "cellflow: --tip-radius-m must be given for --geometry tip (the tip's apex radius)\n");
     return ExitCode::kExitUsage;
   }
   v1::SubmitJobRequest request;
   v1::JobSpec* spec = request.mutable_spec();
-  spec->set_name(flags.name.empty() ? "fit of " + std::to_string(flags.files.size()) + " curves" : flags.name);
+  spec->set_name(flags.name.empty() ? "fit of " + std::to_string(flags.files.size()) + " curves"
+                                    : flags.name);
   v1::FitSpec* fit = spec->mutable_fit();
   fit->set_geometry(flags.geometry == "plates"  ? v1::FIT_GEOMETRY_PLATES
                     : flags.geometry == "probe" ? v1::FIT_GEOMETRY_PROBE
@@ -199,11 +209,13 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
     char* end2 = nullptr;
     const double lo = colon == std::string::npos ? 0 : std::strtod(flags.range.c_str(), &end1);
     const double hi = colon == std::string::npos ? 0 : std::strtod(flags.range.c_str() + colon + 1, &end2);
-    if (colon == std::string::npos || end1 != flags.range.c_str() + colon || end2 == nullptr || *end2 != '\0') {
+    if (colon == std::string::npos || end1 != flags.range.c_str() + colon || end2 == nullptr ||
+        *end2 != '\0') {
       std::fprintf(stderr, "cellflow: --range %s: give MIN:MAX, e.g. 0:0.5\n", flags.range.c_str());
       return ExitCode::kExitUsage;
     }
-    fit->mutable_range()->set_mode(flags.range_unit == "m" ? v1::FitRange::RELATIVE_M : v1::FitRange::DEFORMATION);
+    fit->mutable_range()->set_mode(flags.range_unit == "m" ? v1::FitRange::RELATIVE_M
+                                                           : v1::FitRange::DEFORMATION);
     fit->mutable_range()->set_min(lo);
     fit->mutable_range()->set_max(hi);
   }
@@ -265,11 +277,14 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
   if (flags.watch) printer.finish();
   if (!status.ok()) return report_error(status, "watch " + job_id);
   if (last != v1::Job::SUCCEEDED) {
-    std::fprintf(stderr, "cellflow: %s %s: %s\n", job_id.c_str(), v1::Job::State_Name(last).c_str(), reason.c_str());
+    std::fprintf(stderr, "cellflow: %s %s: %s\n", job_id.c_str(), v1::Job::State_Name(last).c_str(),
+                 reason.c_str());
     return client::exit_code_for(last);
   }
   TemporaryResult temporary;
-  temporary.path = (fs::temp_directory_path() / ("cellflow-" + job_id + "-" + std::to_string(::getpid()) + ".h5")).string();
+  temporary.path =
+      (fs::temp_directory_path() / ("cellflow-" + job_id + "-" + std::to_string(::getpid()) + ".h5"))
+          .string();
   status = client.download(job_id, temporary.path);
   if (!status.ok()) return report_error(status, "result " + job_id);
   StatusOr<std::string> fit_json = client::read_fit_json(temporary.path);
@@ -277,7 +292,8 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
     std::fprintf(stderr, "cellflow: %s: %s\n", job_id.c_str(), fit_json.status().to_string().c_str());
     return ExitCode::kExitNotFound;
   }
-  StatusOr<std::string> text = flags.json ? client::fit_json_report(*fit_json, report) : client::fit_table(*fit_json, report);
+  StatusOr<std::string> text =
+      flags.json ? client::fit_json_report(*fit_json, report) : client::fit_table(*fit_json, report);
   if (!text.ok()) {
     std::fprintf(stderr, "cellflow: %s: %s\n", job_id.c_str(), text.status().to_string().c_str());
     return ExitCode::kExitFailed;
@@ -377,7 +393,8 @@ int main(int argc, char** argv) {
   FitFlags fit_flags;
   auto* fit_cmd = app.add_subcommand(
       "fit",
-      "fit E and the Mooney-Rivlin ratio w (with 95 % intervals) to measured force curves: the files are read "
+      "fit E and the Mooney-Rivlin ratio w (with 95 % intervals) to measured force curves: the files are "
+      "read "
       "here and sent as data; the server's worker fits them with the compression or indentation scene");
   fit_flags.add(fit_cmd);
 
@@ -565,8 +582,9 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "cellflow: %s\n", curves.status().to_string().c_str());
         return ExitCode::kExitNotFound;
       }
-      const std::string text = plot->parsed() ? client::fit_svg(*curves, job_id + " (fit: data, model, Hertz)")
-                                              : client::fit_curves_csv(*curves);
+      const std::string text = plot->parsed()
+                                   ? client::fit_svg(*curves, job_id + " (fit: data, model, Hertz)")
+                                   : client::fit_curves_csv(*curves);
       if (output.empty()) {
         std::fwrite(text.data(), 1, text.size(), stdout);
         return ExitCode::kExitOk;

@@ -30,12 +30,9 @@ json number(double v) {
 }
 
 json estimate_json(const cal::Estimate& e, double shift = 0.0) {
-  return {{"value", number(e.value + shift)},
-          {"lower", number(e.lower + shift)},
-          {"upper", number(e.upper + shift)},
-          {"lower_at_bound", e.lower_at_bound},
-          {"upper_at_bound", e.upper_at_bound},
-          {"fixed", e.fixed}};
+  return {{"value", number(e.value + shift)},   {"lower", number(e.lower + shift)},
+          {"upper", number(e.upper + shift)},   {"lower_at_bound", e.lower_at_bound},
+          {"upper_at_bound", e.upper_at_bound}, {"fixed", e.fixed}};
 }
 
 std::string interval_text(const cal::Estimate& e, double scale, const char* unit) {
@@ -123,7 +120,8 @@ cal::Estimate free_estimate(double value) {
   return e;
 }
 
-// The Hertz model: per curve E and contact by the closed form and a contact search; joint E at those contacts.
+// The Hertz model: per curve E and contact by the closed form and a contact search; joint E at those
+// contacts.
 StatusOr<cal::FitResult> fit_hertz(const FitPlan& plan) {
   cal::FitResult result;
   std::vector<double> all_shape, all_force, all_weight;
@@ -133,9 +131,11 @@ StatusOr<cal::FitResult> fit_hertz(const FitPlan& plan) {
     const std::vector<double> weight = weights_of(c);
     const double window = plan.fit_contact_point ? plan.contact_window_radii * c.radius_m : 0.0;
     auto shape = [&](double d) { return hertz_force(plan, c, 1.0, d); };
-    StatusOr<cal::ContactFit> fit = cal::fit_contact_point(c.indentation_m, c.force_n, weight, shape, -window, window);
+    StatusOr<cal::ContactFit> fit =
+        cal::fit_contact_point(c.indentation_m, c.force_n, weight, shape, -window, window);
     if (!fit.ok()) {
-      return invalid_argument("fit.curves[" + std::to_string(ci) + "] (" + c.name + "): " + fit.status().message());
+      return invalid_argument("fit.curves[" + std::to_string(ci) + "] (" + c.name +
+                              "): " + fit.status().message());
     }
     cal::CurvePart part;
     part.name = c.name;
@@ -204,7 +204,8 @@ struct Hooks {
   std::function<bool()> should_stop;
 };
 
-StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, int threads, const Hooks& hooks) {
+StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, int threads,
+                         const Hooks& hooks) {
   JobFit out;
   out.library_dir = library_dir;
   auto progress = [&](double f, const std::string& stage) {
@@ -247,7 +248,8 @@ StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, in
         std::min(plan.library_max_deformation, (c.indentation_m.back() + window) / (2.0 * c.radius_m));
     needed[text] = std::max(needed[text], reach);
   }
-  const std::vector<double> ws = plan.mooney_rivlin_w ? std::vector<double>{*plan.mooney_rivlin_w} : lo.w_grid;
+  const std::vector<double> ws =
+      plan.mooney_rivlin_w ? std::vector<double>{*plan.mooney_rivlin_w} : lo.w_grid;
   const int total = static_cast<int>(keys.size() * ws.size());
   int done = 0, simulated = 0;
   double cut_w = -1.0;  // the largest w whose curve ends before the needed deformation (w free)
@@ -306,7 +308,8 @@ StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, in
   return out;
 }
 
-json parameter_fit_json(const FitPlan& plan, const cal::ParameterFit& f, const std::vector<const FitCurvePlan*>& curves) {
+json parameter_fit_json(const FitPlan& plan, const cal::ParameterFit& f,
+                        const std::vector<const FitCurvePlan*>& curves) {
   json j;
   j["youngs_modulus_pa"] = estimate_json(f.youngs_modulus_pa);
   j["mooney_rivlin_w"] = estimate_json(f.mooney_rivlin_w);
@@ -314,7 +317,8 @@ json parameter_fit_json(const FitPlan& plan, const cal::ParameterFit& f, const s
   j["parameters"] = f.parameters;
   j["objective"] = f.objective;
   j["rms_relative_residual"] = f.rms_relative_residual;
-  j["hertz_youngs_modulus_pa"] = f.hertz_youngs_modulus_pa ? number(*f.hertz_youngs_modulus_pa) : json(nullptr);
+  j["hertz_youngs_modulus_pa"] =
+      f.hertz_youngs_modulus_pa ? number(*f.hertz_youngs_modulus_pa) : json(nullptr);
   j["hertz_points"] = f.hertz_points;
   j["hertz_max_deformation"] = plan.hertz_max_deformation;
   json parts = json::array();
@@ -379,10 +383,11 @@ std::string csv_rows(const FitPlan& plan, const JobFit& fit) {
   auto row = [&](const char* kind, const cal::ParameterFit& f, std::size_t part, const FitCurvePlan& c) {
     const cal::Estimate& s = f.curves[part].contact_offset_m;
     out += std::string(kind) + "," + c.name;
-    for (double v : {f.youngs_modulus_pa.value, f.youngs_modulus_pa.lower, f.youngs_modulus_pa.upper,
-                     f.mooney_rivlin_w.value, f.mooney_rivlin_w.lower, f.mooney_rivlin_w.upper,
-                     s.value + c.contact_estimate_m, s.lower + c.contact_estimate_m, s.upper + c.contact_estimate_m,
-                     f.curves[part].rms_relative_residual, f.rms_relative_residual}) {
+    for (double v :
+         {f.youngs_modulus_pa.value, f.youngs_modulus_pa.lower, f.youngs_modulus_pa.upper,
+          f.mooney_rivlin_w.value, f.mooney_rivlin_w.lower, f.mooney_rivlin_w.upper,
+          s.value + c.contact_estimate_m, s.lower + c.contact_estimate_m, s.upper + c.contact_estimate_m,
+          f.curves[part].rms_relative_residual, f.rms_relative_residual}) {
       out += ',';
       if (std::isfinite(v)) out += csv_number(v);
     }
@@ -390,7 +395,8 @@ std::string csv_rows(const FitPlan& plan, const JobFit& fit) {
            (f.hertz_youngs_modulus_pa ? csv_number(*f.hertz_youngs_modulus_pa) : std::string()) + "," +
            std::to_string(fit.simulations_run) + "\n";
   };
-  for (std::size_t c = 0; c < fit.result.per_curve.size(); ++c) row("per_curve", fit.result.per_curve[c], 0, plan.curves[c]);
+  for (std::size_t c = 0; c < fit.result.per_curve.size(); ++c)
+    row("per_curve", fit.result.per_curve[c], 0, plan.curves[c]);
   if (fit.result.joint) {
     for (std::size_t c = 0; c < plan.curves.size(); ++c) row("joint", *fit.result.joint, c, plan.curves[c]);
   }
@@ -406,8 +412,9 @@ class FitRecorder : public ResultRecorder {
     keep(writer_->write_string("/summary/fit_json", doc.dump(2)));
     keep(writer_->write_scalar("/summary/simulations_run", fit.simulations_run));
     keep(writer_->write_scalar("/summary/curves", static_cast<double>(plan.curves.size())));
-    const cal::ParameterFit* best = fit.result.joint ? &*fit.result.joint
-                                                     : (fit.result.per_curve.empty() ? nullptr : &fit.result.per_curve[0]);
+    const cal::ParameterFit* best = fit.result.joint
+                                        ? &*fit.result.joint
+                                        : (fit.result.per_curve.empty() ? nullptr : &fit.result.per_curve[0]);
     if (best != nullptr) {
       keep(writer_->write_scalar("/summary/youngs_modulus_pa", best->youngs_modulus_pa.value, "Pa"));
       keep(writer_->write_scalar("/summary/mooney_rivlin_w", best->mooney_rivlin_w.value));
@@ -415,7 +422,8 @@ class FitRecorder : public ResultRecorder {
     for (std::size_t c = 0; c < plan.curves.size(); ++c) {
       const FitCurvePlan& curve = plan.curves[c];
       // The curve's own fit when there is one, else the joint fit's part.
-      const cal::ParameterFit& f = c < fit.result.per_curve.size() ? fit.result.per_curve[c] : *fit.result.joint;
+      const cal::ParameterFit& f =
+          c < fit.result.per_curve.size() ? fit.result.per_curve[c] : *fit.result.joint;
       const cal::CurvePart& part = c < fit.result.per_curve.size() ? f.curves[0] : f.curves[c];
       const double hertz_e = f.hertz_youngs_modulus_pa.value_or(kNaN);
       const std::string prefix = "curve_" + std::to_string(c) + "_";
@@ -454,7 +462,8 @@ class FitJob final : public PreparedJob {
   // The process baseline, one library simulation (mesh and solver per
   // vertex) and the curves (a few copies of 2 doubles per sample).
   std::int64_t memory_bytes() const override {
-    const std::int64_t sim = plan_.model == FitModelKind::kHertz ? 0 : plan_.target_vertex_count * kBytesPerVertex;
+    const std::int64_t sim =
+        plan_.model == FitModelKind::kHertz ? 0 : plan_.target_vertex_count * kBytesPerVertex;
     return kBaselineBytes + sim + plan_.total_samples * 128;
   }
 
@@ -520,15 +529,18 @@ std::string default_library_dir() {
   if (const char* d = std::getenv("XDG_CACHE_HOME"); d != nullptr && *d != '\0') {
     return std::string(d) + "/cellflow/curves";
   }
-  if (const char* d = std::getenv("HOME"); d != nullptr && *d != '\0') return std::string(d) + "/.cache/cellflow/curves";
+  if (const char* d = std::getenv("HOME"); d != nullptr && *d != '\0')
+    return std::string(d) + "/.cache/cellflow/curves";
   const char* tmp = std::getenv("TMPDIR");
   return std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/cellflow-curves";
 }
 
 std::string fit_csv_header() {
   return "fit,curve,youngs_modulus_pa,youngs_modulus_lower_pa,youngs_modulus_upper_pa,mooney_rivlin_w,"
-         "mooney_rivlin_w_lower,mooney_rivlin_w_upper,contact_point_m,contact_point_lower_m,contact_point_upper_m,"
-         "curve_rms_relative_residual,fit_rms_relative_residual,points,hertz_youngs_modulus_pa,simulations_run";
+         "mooney_rivlin_w_lower,mooney_rivlin_w_upper,contact_point_m,contact_point_lower_m,contact_point_"
+         "upper_m,"
+         "curve_rms_relative_residual,fit_rms_relative_residual,points,hertz_youngs_modulus_pa,simulations_"
+         "run";
 }
 
 StatusOr<std::unique_ptr<PreparedJob>> prepare_fit(const v1::JobSpec& spec) {

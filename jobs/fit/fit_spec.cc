@@ -84,8 +84,9 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
   if (plan.geometry == FitGeometryKind::kTip) {
     if (!spec.has_tip_radius_m() || !finite_positive(spec.tip_radius_m())) {
       return refuse("tip_radius_m",
-                    spec.has_tip_radius_m() ? "= " + number_text(spec.tip_radius_m()) + " must be > 0 and finite"
-                                            : "must be set for the tip geometry (the tip's apex radius)",
+                    spec.has_tip_radius_m()
+                        ? "= " + number_text(spec.tip_radius_m()) + " must be > 0 and finite"
+                        : "must be set for the tip geometry (the tip's apex radius)",
                     where);
     }
     probe_radius = spec.tip_radius_m();
@@ -106,18 +107,20 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
   }
   if (spec.w_case() == v1::FitSpec::kMooneyRivlinW) {
     const double w = spec.mooney_rivlin_w();
-    if (!(w >= 0.0 && w <= 1.0)) return refuse("mooney_rivlin_w", "= " + number_text(w) + " must lie in [0, 1]", where);
+    if (!(w >= 0.0 && w <= 1.0))
+      return refuse("mooney_rivlin_w", "= " + number_text(w) + " must lie in [0, 1]", where);
     if (plan.model != FitModelKind::kMooneyRivlin && w != 1.0) {
-      return refuse("mooney_rivlin_w", "= " + number_text(w) + " contradicts model " +
-                                           fit_model_name(plan.model) + " (w = 1)",
+      return refuse("mooney_rivlin_w",
+                    "= " + number_text(w) + " contradicts model " + fit_model_name(plan.model) + " (w = 1)",
                     where);
     }
     plan.mooney_rivlin_w = w;
   } else if (spec.w_case() == v1::FitSpec::kWFree && spec.w_free()) {
     if (plan.model != FitModelKind::kMooneyRivlin) {
-      return refuse("w_free", std::string("needs model MOONEY_RIVLIN (model ") + fit_model_name(plan.model) +
-                                  " has w = 1)",
-                    where);
+      return refuse(
+          "w_free",
+          std::string("needs model MOONEY_RIVLIN (model ") + fit_model_name(plan.model) + " has w = 1)",
+          where);
     }
   } else if (plan.model == FitModelKind::kMooneyRivlin) {
     return refuse("w", "must be set: mooney_rivlin_w (fixed, in [0, 1]) or w_free", where);
@@ -131,8 +134,8 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
   if (spec.has_fit_contact_point()) plan.fit_contact_point = spec.fit_contact_point();
   if (spec.has_contact_window_radii()) plan.contact_window_radii = spec.contact_window_radii();
   if (!(plan.contact_window_radii >= 0.0 && plan.contact_window_radii <= 0.5)) {
-    return refuse("contact_window_radii", "= " + number_text(plan.contact_window_radii) + " must lie in [0, 0.5]",
-                  where);
+    return refuse("contact_window_radii",
+                  "= " + number_text(plan.contact_window_radii) + " must lie in [0, 0.5]", where);
   }
   if (spec.has_hertz_max_deformation()) plan.hertz_max_deformation = spec.hertz_max_deformation();
   if (!(plan.hertz_max_deformation > 0.0 && plan.hertz_max_deformation <= 0.9)) {
@@ -141,7 +144,8 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
   }
   if (spec.has_per_curve()) plan.per_curve = spec.per_curve();
   if (spec.has_joint()) plan.joint = spec.joint();
-  if (!plan.per_curve && !plan.joint) return refuse("per_curve", "and fit.joint are both false: nothing to fit", where);
+  if (!plan.per_curve && !plan.joint)
+    return refuse("per_curve", "and fit.joint are both false: nothing to fit", where);
 
   const v1::FitLibraryNumerics& n = spec.numerics();
   if (n.has_target_vertex_count()) plan.target_vertex_count = n.target_vertex_count();
@@ -167,8 +171,8 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
 
   // The fit range.
   const v1::FitRange& range = spec.range();
-  const v1::FitRange::Mode mode = range.mode() == v1::FitRange::MODE_UNSPECIFIED ? v1::FitRange::DEFORMATION
-                                                                                 : range.mode();
+  const v1::FitRange::Mode mode =
+      range.mode() == v1::FitRange::MODE_UNSPECIFIED ? v1::FitRange::DEFORMATION : range.mode();
   double lo = -0.05, hi = 0.7;
   if (mode != v1::FitRange::DEFORMATION && (!range.has_min() || !range.has_max())) {
     return refuse(range.has_min() ? "range.max" : "range.min", "must be set for a range in metres", where);
@@ -176,7 +180,8 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
   if (range.has_min()) lo = range.min();
   if (range.has_max()) hi = range.max();
   if (!std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi)) {
-    return refuse("range", "[" + number_text(lo) + ", " + number_text(hi) + "] is empty or not finite", where);
+    return refuse("range", "[" + number_text(lo) + ", " + number_text(hi) + "] is empty or not finite",
+                  where);
   }
   if (mode == v1::FitRange::DEFORMATION) {
     if (!(lo > -1.0)) return refuse("range.min", "= " + number_text(lo) + " must be > -1", where);
@@ -186,14 +191,16 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
   // The curves.
   if (spec.curves_size() == 0) return refuse("curves", "is empty: no curve to fit", where);
   if (spec.curves_size() > kMaxFitCurves) {
-    return refuse("curves", "holds " + std::to_string(spec.curves_size()) + " curves, more than " +
-                                std::to_string(kMaxFitCurves),
-                  where);
+    return refuse(
+        "curves",
+        "holds " + std::to_string(spec.curves_size()) + " curves, more than " + std::to_string(kMaxFitCurves),
+        where);
   }
   for (const v1::FitCurve& c : spec.curves()) plan.total_samples += c.force_n_size();
   if (plan.total_samples > kMaxFitPoints) {
-    return refuse("curves", "hold " + std::to_string(plan.total_samples) + " samples in all, more than " +
-                                std::to_string(kMaxFitPoints) + " (thin the curves)",
+    return refuse("curves",
+                  "hold " + std::to_string(plan.total_samples) + " samples in all, more than " +
+                      std::to_string(kMaxFitPoints) + " (thin the curves)",
                   where);
   }
   double eps_min = 1e300, eps_max = -1e300;
@@ -208,8 +215,9 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
         return refuse(path + "radius_m", "= " + number_text(radius) + " must be > 0 and finite", where, ci);
       }
       return refuse("radius_m",
-                    spec.has_radius_m() ? "= " + number_text(radius) + " must be > 0 and finite"
-                                        : "must be set: the cell radius (or curves[i].radius_m for each curve)",
+                    spec.has_radius_m()
+                        ? "= " + number_text(radius) + " must be > 0 and finite"
+                        : "must be set: the cell radius (or curves[i].radius_m for each curve)",
                     where);
     }
     cp.radius_m = radius;
@@ -224,32 +232,37 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
       return refuse(path + "indentation_m", "and tip_position_m are both given: send one", where, ci);
     }
     if (mode == v1::FitRange::ABSOLUTE_M && !by_tip) {
-      return refuse(path + "tip_position_m", "is empty: an ABSOLUTE_M fit range needs tip positions", where, ci);
+      return refuse(path + "tip_position_m", "is empty: an ABSOLUTE_M fit range needs tip positions", where,
+                    ci);
     }
     const auto& x = by_tip ? c.tip_position_m() : c.indentation_m();
     const std::string x_name = by_tip ? "tip_position_m" : "indentation_m";
     if (x.empty()) return refuse(path + "indentation_m", "is empty (and so is tip_position_m)", where, ci);
     if (c.force_n_size() != x.size()) {
-      return refuse(path + "force_n", "has " + std::to_string(c.force_n_size()) + " samples, " + x_name + " " +
-                                          std::to_string(x.size()),
-                    where, ci);
+      return refuse(
+          path + "force_n",
+          "has " + std::to_string(c.force_n_size()) + " samples, " + x_name + " " + std::to_string(x.size()),
+          where, ci);
     }
     const double two_r = 2.0 * radius;
     double max_force = 0.0;
     for (int i = 0; i < x.size(); ++i) {
-      if (!std::isfinite(x[i])) return refuse(path + x_name + at(i), "= " + number_text(x[i]) + " must be finite", where, ci, i);
+      if (!std::isfinite(x[i]))
+        return refuse(path + x_name + at(i), "= " + number_text(x[i]) + " must be finite", where, ci, i);
       if (i > 0 && !(x[i] > x[i - 1])) {
         return refuse(path + x_name + at(i),
                       "= " + number_text(x[i]) + " is not above " + x_name + at(i - 1) + " = " +
-                          number_text(x[i - 1]) + ": the deformation must increase strictly (sort or bin the approach)",
+                          number_text(x[i - 1]) +
+                          ": the deformation must increase strictly (sort or bin the approach)",
                       where, ci, i);
       }
       const double f = c.force_n(i);
-      if (!std::isfinite(f)) return refuse(path + "force_n" + at(i), "= " + number_text(f) + " must be finite", where, ci, i);
+      if (!std::isfinite(f))
+        return refuse(path + "force_n" + at(i), "= " + number_text(f) + " must be finite", where, ci, i);
       if (f < -3.0 * cp.force_noise_n) {
         return refuse(path + "force_n" + at(i),
-                      "= " + number_text(f) + " is negative (beyond 3 force_noise_n = " +
-                          number_text(3.0 * cp.force_noise_n) +
+                      "= " + number_text(f) +
+                          " is negative (beyond 3 force_noise_n = " + number_text(3.0 * cp.force_noise_n) +
                           "): subtract the baseline so the free cantilever reads 0, or give force_noise_n",
                       where, ci, i);
       }
@@ -280,14 +293,19 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
     const char* unit = mode == v1::FitRange::DEFORMATION ? "" : " m";
     if (cp.indentation_m.empty()) {
       return refuse(path + x_name,
-                    "has no sample in the fit range [" + number_text(lo) + unit + ", " + number_text(hi) + unit +
-                        "] (" + std::string(mode == v1::FitRange::DEFORMATION ? "deformation x/(2R)" : mode == v1::FitRange::RELATIVE_M ? "metres past the contact estimate" : "tip position") +
-                        "; the curve spans deformation [" + number_text((x[0] - cp.contact_estimate_m) / two_r, 4) + ", " +
+                    "has no sample in the fit range [" + number_text(lo) + unit + ", " + number_text(hi) +
+                        unit + "] (" +
+                        std::string(mode == v1::FitRange::DEFORMATION  ? "deformation x/(2R)"
+                                    : mode == v1::FitRange::RELATIVE_M ? "metres past the contact estimate"
+                                                                       : "tip position") +
+                        "; the curve spans deformation [" +
+                        number_text((x[0] - cp.contact_estimate_m) / two_r, 4) + ", " +
                         number_text((x[x.size() - 1] - cp.contact_estimate_m) / two_r, 4) + "])",
                     where, ci);
     }
     if (!(*std::max_element(cp.force_n.begin(), cp.force_n.end()) > 0.0)) {
-      return refuse(path + "force_n", "has no positive force in the fit range: nothing to fit E to", where, ci);
+      return refuse(path + "force_n", "has no positive force in the fit range: nothing to fit E to", where,
+                    ci);
     }
     eps_min = std::min(eps_min, cp.indentation_m.front() / two_r);
     eps_max = std::max(eps_max, cp.indentation_m.back() / two_r);
@@ -300,8 +318,9 @@ StatusOr<FitPlan> to_fit_plan(const v1::FitSpec& spec, FitSpecError* where) {
     plan.min_deformation = std::max(eps_min, -0.99);
     plan.max_deformation = eps_max;
     if (!(plan.max_deformation < 0.9)) {
-      return refuse("range.max", "= " + number_text(hi) + " m reaches deformation " +
-                                     number_text(plan.max_deformation, 4) + ", must stay below 0.9",
+      return refuse("range.max",
+                    "= " + number_text(hi) + " m reaches deformation " +
+                        number_text(plan.max_deformation, 4) + ", must stay below 0.9",
                     where);
     }
     if (!(plan.max_deformation > plan.min_deformation)) {

@@ -47,11 +47,11 @@ const char* fit_model_name(FitModelKind model);           // "mooney_rivlin", "n
 struct FitCurvePlan {
   std::string name;
   double radius_m = 0.0;
-  double probe_radius_m = 0.0;          // probe: Rp; tip: the tip radius; plates: 0
-  double contact_estimate_m = 0.0;      // tip position of the contact estimate (0 for indentation_m)
-  std::vector<double> indentation_m;    // from the contact estimate, strictly increasing
+  double probe_radius_m = 0.0;        // probe: Rp; tip: the tip radius; plates: 0
+  double contact_estimate_m = 0.0;    // tip position of the contact estimate (0 for indentation_m)
+  std::vector<double> indentation_m;  // from the contact estimate, strictly increasing
   std::vector<double> force_n;
-  std::vector<int> sample;              // index of each sample in the spec's arrays
+  std::vector<int> sample;  // index of each sample in the spec's arrays
   double force_noise_n = 0.0;
 };
 

@@ -20,7 +20,8 @@ const std::string kExamples = std::string(CELLFLOW_SOURCE_DIR) + "/examples/fit"
 
 std::string example_files() {
   std::string files;
-  for (int i = 1; i <= 5; ++i) files += " " + kExamples + "/synthetic_plates_E150_w0.5_" + std::to_string(i) + ".csv";
+  for (int i = 1; i <= 5; ++i)
+    files += " " + kExamples + "/synthetic_plates_E150_w0.5_" + std::to_string(i) + ".csv";
   return files;
 }
 
@@ -50,7 +51,8 @@ class FitServiceTest : public ServiceTest {
 TEST_F(FitServiceTest, SyntheticCurvesGiveTrueEAndWAndASecondFitReusesTheLibrary) {
   start(1);
   const std::string command =
-      cli_ + " fit" + example_files() + " --geometry plates --radius-m 8.6e-6 --w-free --vertices 1000 --load-points 20 --json";
+      cli_ + " fit" + example_files() +
+      " --geometry plates --radius-m 8.6e-6 --w-free --vertices 1000 --load-points 20 --json";
   int code = 0;
   const auto t0 = std::chrono::steady_clock::now();
   const std::string out = run_command(command, &code);
@@ -62,9 +64,10 @@ TEST_F(FitServiceTest, SyntheticCurvesGiveTrueEAndWAndASecondFitReusesTheLibrary
   const double e = joint["youngs_modulus_pa"]["value"].get<double>();
   const double w = joint["mooney_rivlin_w"]["value"].get<double>();
   std::printf("joint fit: E %.2f Pa [%.2f, %.2f], w %.3f [%.3f, %.3f], %d simulations, %.1f s\n", e,
-              joint["youngs_modulus_pa"]["lower"].get<double>(), joint["youngs_modulus_pa"]["upper"].get<double>(), w,
-              joint["mooney_rivlin_w"]["lower"].get<double>(), joint["mooney_rivlin_w"]["upper"].get<double>(),
-              report["simulations_run"].get<int>(), cold_s);
+              joint["youngs_modulus_pa"]["lower"].get<double>(),
+              joint["youngs_modulus_pa"]["upper"].get<double>(), w,
+              joint["mooney_rivlin_w"]["lower"].get<double>(),
+              joint["mooney_rivlin_w"]["upper"].get<double>(), report["simulations_run"].get<int>(), cold_s);
   EXPECT_NEAR(e, 150.0, 0.03 * 150.0) << out;
   EXPECT_NEAR(w, 0.5, 0.07) << out;
   EXPECT_LE(joint["youngs_modulus_pa"]["lower"].get<double>(), e);
@@ -80,26 +83,35 @@ TEST_F(FitServiceTest, SyntheticCurvesGiveTrueEAndWAndASecondFitReusesTheLibrary
   }
   const std::string job_id = report["job"].get<std::string>();
 
-  // The second fit finds every curve in the cache.
+  // The second fit finds every curve in the cache (per-curve fits only: the
+  // joint fit's profile intervals take most of a minute, see bench/fit).
   const auto t1 = std::chrono::steady_clock::now();
-  const std::string again = run_command(command, &code);
+  const std::string again = run_command(command + " --no-joint", &code);
   const double warm_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   ASSERT_EQ(code, 0) << again;
   const json second = parse_report(again);
   std::printf("second fit: %d simulations, %.1f s\n", second["simulations_run"].get<int>(), warm_s);
   EXPECT_EQ(second["simulations_run"].get<int>(), 0) << again;
-  EXPECT_NEAR(second["joint"]["youngs_modulus_pa"]["value"].get<double>(), e, 1e-6 * e);
+  ASSERT_EQ(second["curves"].size(), 5u);
+  for (std::size_t c = 0; c < 5; ++c) {  // the same curves from the cache: the same fit
+    EXPECT_NEAR(second["curves"][c]["youngs_modulus_pa"]["value"].get<double>(),
+                report["curves"][c]["youngs_modulus_pa"]["value"].get<double>(), 1e-9 * e);
+  }
 
   // The table, the curves as CSV columns and the plot.
-  const std::string table = run_command(cli_ + " fit" + example_files() +
-                                            " --geometry plates --radius-m 8.6e-6 --w-free --vertices 1000 --load-points 20",
-                                        &code);
+  const std::string table = run_command(
+      cli_ + " fit" + example_files() +
+          " --geometry plates --radius-m 8.6e-6 --w-free --vertices 1000 --load-points 20 --no-joint",
+      &code);
   ASSERT_EQ(code, 0) << table;
-  EXPECT_NE(table.find("joint (5 curves)"), std::string::npos) << table;
+  EXPECT_NE(table.find("synthetic_plates_E150_w0.5_5.csv"), std::string::npos) << table;
   EXPECT_NE(table.find("simulations run: 0"), std::string::npos) << table;
   const std::string csv = run_command(cli_ + " result " + job_id + " --csv", &code);
   ASSERT_EQ(code, 0) << csv;
-  EXPECT_EQ(csv.rfind("curve,name,sample,indentation_m,deformation,force_n,model_force_n,hertz_force_n,joint_model_force_n\n", 0), 0u)
+  EXPECT_EQ(csv.rfind("curve,name,sample,indentation_m,deformation,force_n,model_force_n,hertz_force_n,joint_"
+                      "model_force_n\n",
+                      0),
+            0u)
       << csv.substr(0, 300);
   EXPECT_GT(std::count(csv.begin(), csv.end(), '\n'), 500);
   const std::string svg = (dir_ / "fit.svg").string();
@@ -138,7 +150,8 @@ TEST_F(FitServiceTest, BadInputIsRefusedNamingFileAndProblemAndNothingIsQueued) 
   const std::string good = write("good.csv", curve_text(-1, ""));
   std::string jpk;
   {
-    std::ifstream in(std::string(CELLFLOW_AFM_DATA_DIR) + "/fmt-jpk-fd_spot3-0192.jpk-force", std::ios::binary);
+    std::ifstream in(std::string(CELLFLOW_AFM_DATA_DIR) + "/fmt-jpk-fd_spot3-0192.jpk-force",
+                     std::ios::binary);
     std::stringstream all;
     all << in.rdbuf();
     jpk = all.str().substr(0, all.str().size() / 2);
@@ -147,14 +160,26 @@ TEST_F(FitServiceTest, BadInputIsRefusedNamingFileAndProblemAndNothingIsQueued) 
       {"empty file", write("empty.csv", "") + base, {"empty.csv"}, 2},
       {"unreadable file", (dir_ / "missing.csv").string() + base, {"missing.csv"}, 2},
       {"truncated JPK archive", write("cut.jpk-force", jpk) + base, {"cut.jpk-force"}, 2},
-      {"non-monotonic deformation", write("backwards.csv", curve_text(30, "1.0e-6,2.0e-9")) + base,
-       {"backwards.csv", "sample 30", "non-monotonic"}, 2},
-      {"negative force", write("negative.csv", curve_text(30, "3.0e-6,-5.0e-9")) + base,
-       {"negative.csv", "approach sample 30", "force_n", "negative"}, 2},
-      {"deformation >= 1", write("deep.csv", curve_text(39, "2.0e-5,9.0e-9")) + base,
-       {"deep.csv", "approach sample 39", ">= 1"}, 2},
-      {"probe radius missing", good + " --geometry probe --radius-m 8.6e-6 --w-free", {"--probe-radius-m"}, 1},
-      {"fit range with no points", good + base + " --range 0.6:0.65", {"good.csv", "no sample in the fit range"}, 2},
+      {"non-monotonic deformation",
+       write("backwards.csv", curve_text(30, "1.0e-6,2.0e-9")) + base,
+       {"backwards.csv", "sample 30", "non-monotonic"},
+       2},
+      {"negative force",
+       write("negative.csv", curve_text(30, "3.0e-6,-5.0e-9")) + base,
+       {"negative.csv", "approach sample 30", "force_n", "negative"},
+       2},
+      {"deformation >= 1",
+       write("deep.csv", curve_text(39, "2.0e-5,9.0e-9")) + base,
+       {"deep.csv", "approach sample 39", ">= 1"},
+       2},
+      {"probe radius missing",
+       good + " --geometry probe --radius-m 8.6e-6 --w-free",
+       {"--probe-radius-m"},
+       1},
+      {"fit range with no points",
+       good + base + " --range 0.6:0.65",
+       {"good.csv", "no sample in the fit range"},
+       2},
   };
   for (const Case& c : cases) {
     int code = 0;
@@ -185,12 +210,14 @@ TEST_F(FitServiceTest, BadInputIsRefusedNamingFileAndProblemAndNothingIsQueued) 
   *request.mutable_spec() = spec;
   status = client_->submit(request, &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_NE(status.error_message().find("fit.curves[0].force_n[1]"), std::string::npos) << status.error_message();
+  EXPECT_NE(status.error_message().find("fit.curves[0].force_n[1]"), std::string::npos)
+      << status.error_message();
   curve->set_force_n(1, 1e-9);
   curve->set_indentation_m(2, 0.5e-6);
   *request.mutable_spec() = spec;
   status = client_->submit(request, &response);
-  EXPECT_NE(status.error_message().find("fit.curves[0].indentation_m[2]"), std::string::npos) << status.error_message();
+  EXPECT_NE(status.error_message().find("fit.curves[0].indentation_m[2]"), std::string::npos)
+      << status.error_message();
   EXPECT_EQ(jobs(), 0);
 }
 

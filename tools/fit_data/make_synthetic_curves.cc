@@ -33,8 +33,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-deformation", max_deformation, "deepest deformation past the true contact")
       ->capture_default_str();
   app.add_option("--step-m", step_m, "indentation step")->capture_default_str();
-  app.add_option("--offset-m", offset_m, "contact offsets spread over [-offset, +offset]")->capture_default_str();
-  app.add_option("--pre-contact-m", pre_contact_m, "approach before the nominal contact")->capture_default_str();
+  app.add_option("--offset-m", offset_m, "contact offsets spread over [-offset, +offset]")
+      ->capture_default_str();
+  app.add_option("--pre-contact-m", pre_contact_m, "approach before the nominal contact")
+      ->capture_default_str();
   app.add_option("--vertices", vertices, "library numerics: mesh vertices")->capture_default_str();
   app.add_option("--load-points", load_points, "library numerics: load points")->capture_default_str();
   app.add_option("--library-dir", library_dir, "load and save the curve library here (optional)");
@@ -70,9 +72,10 @@ int main(int argc, char** argv) {
         out_dir + "/synthetic_plates_E" + e_text + "_w" + w_text + "_" + std::to_string(c + 1) + ".csv";
     std::ofstream out(path);
     out << "# synthetic: compression between plates made by cellflow's own model (not a measurement)\n"
-        << "# E = " << e << " Pa, w = " << w << ", nu = 0.48, R = " << radius << " m, true contact at indentation "
-        << s << " m, relative force noise " << noise << " (Gaussian), library " << vertices << " vertices, "
-        << load_points << " load points, seed " << seed << "\n"
+        << "# E = " << e << " Pa, w = " << w << ", nu = 0.48, R = " << radius
+        << " m, true contact at indentation " << s << " m, relative force noise " << noise
+        << " (Gaussian), library " << vertices << " vertices, " << load_points << " load points, seed "
+        << seed << "\n"
         << "indentation_m,force_n\n";
     for (double x = -pre_contact_m; x <= s + max_deformation * two_r + 1e-15; x += step_m) {
       const double eps = (x - s) / two_r;

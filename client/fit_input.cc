@@ -63,10 +63,7 @@ StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m,
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::size_t bad = 0;
   if (!strictly_increasing(x_read, &bad)) {
-    std::size_t bad_height = 0;
-    const bool height_ok = derived_tip && (strictly_increasing(seg->height_m, &bad_height) ||
-                                           std::is_sorted(seg->height_m.begin(), seg->height_m.end()));
-    if (!height_ok) {
+    if (!derived_tip) {
       return file_error(path, "approach sample " + std::to_string(bad) + ": position " +
                                   number_text(x_read[bad]) + " m is not above sample " +
                                   std::to_string(bad - 1) + "'s " + number_text(x_read[bad - 1]) +
@@ -109,7 +106,15 @@ StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m,
   out.file = path;
   out.contact_estimate_m = contact->tip_position_m;
   out.curve.set_name(std::filesystem::path(path).filename().string());
-  out.curve.set_force_noise_n(contact->baseline.noise_sigma_n);
+  // The noise floor: the baseline's RMS residual, raised to a third of the
+  // deepest negative excursion before the contact estimate (the fit refuses
+  // forces below -3 force_noise_n; a 1000-sample free approach has spikes past 3 sigma).
+  double noise = contact->baseline.noise_sigma_n;
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    const double d = x[k] - contact->tip_position_m;
+    if (d <= 0.0 && d >= -0.1 * 2.0 * radius_m) noise = std::max(noise, -f0[k] / 3.0);
+  }
+  out.curve.set_force_noise_n(noise);
   const double margin = 0.1 * 2.0 * radius_m;
   for (std::size_t k = 0; k < x.size(); ++k) {
     const double d = x[k] - contact->tip_position_m;

@@ -4,10 +4,12 @@
 // deflection; the height when the deflection is unknown), the baseline and a
 // first contact estimate (baseline deviation), the force with the baseline
 // subtracted, and the indentation from that estimate, as a v1::FitCurve with
-// the samples from 0.1 deformation (0.2 R) before the estimate on.
+// the samples from 0.1 deformation (0.2 R) before the estimate on, and the
+// force noise (the baseline's RMS residual, at least a third of the deepest
+// negative excursion of the sent samples before the contact estimate).
 //
-// A tip position that is not increasing (deflection noise on a monotonic
-// height) is sorted and ties are dropped; a position channel the file gives
+// A tip position derived from height and deflection that is not increasing
+// (the noise of both) is sorted and ties are dropped; a position channel the file gives
 // directly (tip position, indentation, or height without deflection) must
 // increase: else the error names the sample. Every error names the file.
 #pragma once

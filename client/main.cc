@@ -140,7 +140,8 @@ struct FitFlags {
     app->add_option("--model", model,
                     "mooney-rivlin (default), neo-hookean (w = 1) or hertz (no simulations)")
         ->check(CLI::IsMember({"mooney-rivlin", "neo-hookean", "hertz"}));
-    auto* w_option = app->add_option("--w", w, "fixed Mooney-Rivlin ratio w in [0, 1]");
+    auto* w_option =
+        app->add_option("--w", w, "fixed Mooney-Rivlin ratio w in [0, 1] (default 1 unless --w-free)");
     app->add_flag("--w-free", w_free, "fit w in [0, 1]")->excludes(w_option);
     app->add_option("--poisson-ratio", poisson_ratio, "nu in (-1, 0.5) (default 0.48)");
     app->add_option("--range", range, "fit range MIN:MAX (default -0.05:0.7 in deformation x/2R)");

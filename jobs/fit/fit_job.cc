@@ -489,14 +489,17 @@ class FitJob final : public PreparedJob {
     FitRecorder recorder(writer->get());
     const Status written = recorder.write(plan_, *fit);
     if (events.progress) {
-      for (std::size_t c = 0; c < fit->result.per_curve.size(); ++c) {
-        events.progress(1.0, fit_stage(("fit curve " + std::to_string(c + 1) + "/" +
-                                        std::to_string(plan_.curves.size()) + " " + plan_.curves[c].name)
-                                           .c_str(),
-                                       fit->result.per_curve[c]));
-      }
-      if (fit->result.joint) events.progress(1.0, fit_stage("fit joint", *fit->result.joint));
-      events.progress(1.0, "simulations run: " + std::to_string(fit->simulations_run));
+      // One last stage (the worker keeps one progress report per fraction and
+      // at most five a second): the joint fit, or the one curve's; every
+      // curve's fit is in the result file.
+      const std::size_t n = plan_.curves.size();
+      std::string stage =
+          fit->result.joint
+              ? fit_stage(("fit joint (" + std::to_string(n) + " curves)").c_str(), *fit->result.joint)
+              : fit_stage(("fit " + plan_.curves[0].name).c_str(), fit->result.per_curve[0]);
+      if (n > 1 && !fit->result.per_curve.empty()) stage += "; per curve: in the result";
+      stage += "; simulations run " + std::to_string(fit->simulations_run);
+      events.progress(1.0, stage);
     }
     return outcome_of(Status::ok_status(), written, 0);
   }

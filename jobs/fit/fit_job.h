@@ -12,10 +12,13 @@
 // range, the best model curve and the Hertz curve as observables, and the
 // whole fit as a JSON document (/summary/fit_json) -- the document
 // `cellflow fit --json` prints. The results reach a watcher as the last
-// progress stages ("fit curve 2/5 ...: E ... Pa [lo, hi]", "fit joint: ...")
-// and in the result file; there is no sample message for them (JobEvent's
-// samples are force and deformation points; a FitSample kind would touch the
-// worker protocol and the store).
+// progress stage ("fit joint (5 curves): E ... Pa [lo, hi], w ...;
+// simulations run 7", or the one curve's fit) and in the result file, where
+// the client reads every curve's fit; there is no sample message for them
+// (JobEvent's samples are force and deformation points; a FitSample kind
+// would touch the worker protocol, the server's report handling and the
+// store). The worker forwards one progress report per fraction and at most
+// five a second, so one stage at fraction 1 carries the summary.
 //
 // The tip geometry is fitted with the probe scene: a sphere of the tip's
 // apex radius (a paraboloid near its apex). The Hertz model needs no scene:

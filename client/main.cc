@@ -13,6 +13,8 @@
 
 #include "client/curve_output.h"
 #include "client/exit_codes.h"
+#include "client/fit_input.h"
+#include "client/fit_output.h"
 #include "client/flow_output.h"
 #include "client/rpc_client.h"
 #include "client/watch_printer.h"
@@ -139,6 +141,194 @@ struct TemporaryResult {
   }
 };
 
+// `cellflow fit`: the flags of one fit job.
+struct FitFlags {
+  std::vector<std::string> files;
+  std::string geometry, model = "mooney-rivlin", range, range_unit = "deformation", request_id, name;
+  double radius_m = 0, probe_radius_m = 0, tip_radius_m = 0, w = 1, poisson_ratio = 0.48;
+  double spring_constant = 0, sensitivity = 0, library_max_deformation = 0, contact_window_radii = 0;
+  int vertices = 0, load_points = 0;
+  bool w_free = false, watch = false, json = false, no_per_curve = false, no_joint = false,
+       print_spec = false;
+
+  void add(CLI::App* app) {
+    app->add_option("files", files,
+                    "force-curve files (JPK .jpk-force, AFM Workshop CSV, NT-MDT txt, tab export, "
+                    "CSV/TSV with named columns)")
+        ->required();
+    app->add_option("--geometry", geometry,
+                    "plates (flat cantilever / FluidFM), probe (colloidal probe), tip")
+        ->required()
+        ->check(CLI::IsMember({"plates", "probe", "tip"}));
+    app->add_option("--radius-m", radius_m, "cell radius R in metres")->required();
+    app->add_option("--probe-radius-m", probe_radius_m, "colloidal probe radius (geometry probe)");
+    app->add_option("--tip-radius-m", tip_radius_m, "tip apex radius (geometry tip)");
+    app->add_option("--model", model,
+                    "mooney-rivlin (default), neo-hookean (w = 1) or hertz (no simulations)")
+        ->check(CLI::IsMember({"mooney-rivlin", "neo-hookean", "hertz"}));
+    auto* w_option =
+        app->add_option("--w", w, "fixed Mooney-Rivlin ratio w in [0, 1] (default 1 unless --w-free)");
+    app->add_flag("--w-free", w_free, "fit w in [0, 1]")->excludes(w_option);
+    app->add_option("--poisson-ratio", poisson_ratio, "nu in (-1, 0.5) (default 0.48)");
+    app->add_option("--range", range, "fit range MIN:MAX (default -0.05:0.7 in deformation x/2R)");
+    app->add_option("--range-unit", range_unit, "deformation (x/2R) or m (metres past the contact estimate)")
+        ->check(CLI::IsMember({"deformation", "m"}));
+    app->add_option("--spring-constant", spring_constant,
+                    "cantilever spring constant N/m (overrides the file)");
+    app->add_option("--sensitivity", sensitivity, "deflection sensitivity m/V (overrides the file)");
+    app->add_option("--vertices", vertices, "library numerics: sphere mesh vertices (server default 3000)");
+    app->add_option("--load-points", load_points, "library numerics: points per curve (server default 30)");
+    app->add_option("--library-max-deformation", library_max_deformation,
+                    "library numerics: last deformation of the curves (default 0.75)");
+    app->add_option("--contact-window-radii", contact_window_radii,
+                    "contact point searched within +-c R of the estimate (default 0.1)");
+    app->add_flag("--no-per-curve", no_per_curve, "joint fit only");
+    app->add_flag("--no-joint", no_joint, "per-curve fits only");
+    app->add_option("--request-id", request_id, "idempotency key");
+    app->add_option("--name", name, "a name for the job");
+    app->add_flag("--watch", watch, "print the job's events while it runs");
+    app->add_flag("--json", json, "print the fit as JSON (per curve and joint, 95 % bounds)");
+    app->add_flag(
+        "--print-spec", print_spec,
+        "print the job spec (with the curves as data) as JSON and exit: for cellflow-run or submit --spec");
+  }
+};
+
+int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
+  if (!(flags.radius_m > 0.0)) {
+    std::fprintf(stderr, "cellflow: --radius-m = %g must be > 0\n", flags.radius_m);
+    return ExitCode::kExitUsage;
+  }
+  if (flags.geometry == "probe" && !app->count("--probe-radius-m")) {
+    std::fprintf(
+        stderr,
+        "cellflow: --probe-radius-m must be given for --geometry probe (the colloidal probe's radius)\n");
+    return ExitCode::kExitUsage;
+  }
+  if (flags.geometry == "tip" && !app->count("--tip-radius-m")) {
+    std::fprintf(stderr,
+                 "cellflow: --tip-radius-m must be given for --geometry tip (the tip's apex radius)\n");
+    return ExitCode::kExitUsage;
+  }
+  v1::SubmitJobRequest request;
+  v1::JobSpec* spec = request.mutable_spec();
+  spec->set_name(flags.name.empty() ? "fit of " + std::to_string(flags.files.size()) + " curves"
+                                    : flags.name);
+  v1::FitSpec* fit = spec->mutable_fit();
+  fit->set_geometry(flags.geometry == "plates"  ? v1::FIT_GEOMETRY_PLATES
+                    : flags.geometry == "probe" ? v1::FIT_GEOMETRY_PROBE
+                                                : v1::FIT_GEOMETRY_TIP);
+  fit->set_radius_m(flags.radius_m);
+  if (app->count("--probe-radius-m")) fit->set_probe_radius_m(flags.probe_radius_m);
+  if (app->count("--tip-radius-m")) fit->set_tip_radius_m(flags.tip_radius_m);
+  fit->set_model(flags.model == "hertz"         ? v1::FIT_MODEL_HERTZ
+                 : flags.model == "neo-hookean" ? v1::FIT_MODEL_NEO_HOOKEAN
+                                                : v1::FIT_MODEL_MOONEY_RIVLIN);
+  if (flags.w_free) {
+    fit->set_w_free(true);
+  } else if (app->count("--w") || flags.model == "mooney-rivlin") {
+    fit->set_mooney_rivlin_w(flags.w);
+  }
+  if (app->count("--poisson-ratio")) fit->set_poisson_ratio(flags.poisson_ratio);
+  if (!flags.range.empty()) {
+    const auto colon = flags.range.find(':');
+    char* end1 = nullptr;
+    char* end2 = nullptr;
+    const double lo = colon == std::string::npos ? 0 : std::strtod(flags.range.c_str(), &end1);
+    const double hi = colon == std::string::npos ? 0 : std::strtod(flags.range.c_str() + colon + 1, &end2);
+    if (colon == std::string::npos || end1 != flags.range.c_str() + colon || end2 == nullptr ||
+        *end2 != '\0') {
+      std::fprintf(stderr, "cellflow: --range %s: give MIN:MAX, e.g. 0:0.5\n", flags.range.c_str());
+      return ExitCode::kExitUsage;
+    }
+    fit->mutable_range()->set_mode(flags.range_unit == "m" ? v1::FitRange::RELATIVE_M
+                                                           : v1::FitRange::DEFORMATION);
+    fit->mutable_range()->set_min(lo);
+    fit->mutable_range()->set_max(hi);
+  }
+  if (app->count("--vertices")) fit->mutable_numerics()->set_target_vertex_count(flags.vertices);
+  if (app->count("--load-points")) fit->mutable_numerics()->set_load_points(flags.load_points);
+  if (app->count("--library-max-deformation"))
+    fit->mutable_numerics()->set_max_deformation(flags.library_max_deformation);
+  if (app->count("--contact-window-radii")) fit->set_contact_window_radii(flags.contact_window_radii);
+  if (flags.no_per_curve) fit->set_per_curve(false);
+  if (flags.no_joint) fit->set_joint(false);
+
+  // Every file read and checked here, before anything is submitted.
+  client::FitInputOptions input_options;
+  if (app->count("--spring-constant")) input_options.spring_constant_n_per_m = flags.spring_constant;
+  if (app->count("--sensitivity")) input_options.sensitivity_m_per_v = flags.sensitivity;
+  std::vector<client::FitInputCurve> inputs;
+  client::FitReport report;
+  for (const std::string& file : flags.files) {
+    StatusOr<client::FitInputCurve> input = client::read_fit_curve(file, flags.radius_m, input_options);
+    if (!input.ok()) {
+      std::fprintf(stderr, "cellflow: %s\n", input.status().message().c_str());
+      return ExitCode::kExitInvalidArgument;
+    }
+    *fit->add_curves() = input->curve;
+    report.files.push_back(file);
+    report.contact_estimates_m.push_back(input->contact_estimate_m);
+    inputs.push_back(std::move(*input));
+  }
+  if (Status s = client::check_fit_spec(*fit, inputs); !s.ok()) {
+    std::fprintf(stderr, "cellflow: %s\n", s.message().c_str());
+    return ExitCode::kExitInvalidArgument;
+  }
+
+  if (flags.print_spec) {
+    std::printf("%s\n", jobs::job_spec_to_json(*spec).c_str());
+    return ExitCode::kExitOk;
+  }
+  request.set_request_id(flags.request_id.empty() ? random_request_id() : flags.request_id);
+  v1::SubmitJobResponse response;
+  grpc::Status status = client.submit(request, &response);
+  if (!status.ok()) return report_error(status, "submit");
+  const std::string job_id = response.job().id();
+  report.job_id = job_id;
+  if (!flags.json) std::printf("%s\n", job_id.c_str());
+  std::fflush(stdout);
+  // Wait for the end (printing the events with --watch; progress to stderr otherwise).
+  const bool terminal = ::isatty(STDOUT_FILENO) != 0;
+  client::WatchPrinter printer(flags.json ? stderr : stdout, terminal);
+  v1::Job::State last = v1::Job::STATE_UNSPECIFIED;
+  std::string reason;
+  status = client.watch(job_id, 0, [&](const v1::JobEvent& event) {
+    if (flags.watch) printer.print(event);
+    if (event.has_state_change()) {
+      last = event.state_change().state();
+      reason = event.state_change().reason();
+    }
+    return true;
+  });
+  if (flags.watch) printer.finish();
+  if (!status.ok()) return report_error(status, "watch " + job_id);
+  if (last != v1::Job::SUCCEEDED) {
+    std::fprintf(stderr, "cellflow: %s %s: %s\n", job_id.c_str(), v1::Job::State_Name(last).c_str(),
+                 reason.c_str());
+    return client::exit_code_for(last);
+  }
+  TemporaryResult temporary;
+  temporary.path =
+      (fs::temp_directory_path() / ("cellflow-" + job_id + "-" + std::to_string(::getpid()) + ".h5"))
+          .string();
+  status = client.download(job_id, temporary.path);
+  if (!status.ok()) return report_error(status, "result " + job_id);
+  StatusOr<std::string> fit_json = client::read_fit_json(temporary.path);
+  if (!fit_json.ok()) {
+    std::fprintf(stderr, "cellflow: %s: %s\n", job_id.c_str(), fit_json.status().to_string().c_str());
+    return ExitCode::kExitNotFound;
+  }
+  StatusOr<std::string> text =
+      flags.json ? client::fit_json_report(*fit_json, report) : client::fit_table(*fit_json, report);
+  if (!text.ok()) {
+    std::fprintf(stderr, "cellflow: %s: %s\n", job_id.c_str(), text.status().to_string().c_str());
+    return ExitCode::kExitFailed;
+  }
+  std::printf("%s%s", text->c_str(), flags.json ? "\n" : "");
+  return ExitCode::kExitOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -242,6 +432,14 @@ int main(int argc, char** argv) {
   plot->add_option("--against", against, "steady D of the given shear-flow jobs against this quantity")
       ->check(CLI::IsMember({"capillary-number"}));
 
+  FitFlags fit_flags;
+  auto* fit_cmd = app.add_subcommand(
+      "fit",
+      "fit E and the Mooney-Rivlin ratio w (with 95 % intervals) to measured force curves: the files are "
+      "read "
+      "here and sent as data; the server's worker fits them with the compression or indentation scene");
+  fit_flags.add(fit_cmd);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -309,6 +507,8 @@ int main(int argc, char** argv) {
     if (submit_watch) return watch(client, response.job().id(), 0, false);
     return ExitCode::kExitOk;
   }
+
+  if (fit_cmd->parsed()) return run_fit(client, fit_cmd, fit_flags);
 
   if (watch_cmd->parsed()) return watch(client, job_id, after_sequence, quiet);
 
@@ -429,6 +629,28 @@ int main(int argc, char** argv) {
         std::printf("%s\n", h5.c_str());
         std::fprintf(stderr, "cellflow: no XDMF file: %s\n", s.to_string().c_str());
       }
+      return ExitCode::kExitOk;
+    }
+    if (client::is_fit_result(h5)) {
+      auto curves = client::read_fit_curves(h5);
+      if (!curves.ok()) {
+        std::fprintf(stderr, "cellflow: %s\n", curves.status().to_string().c_str());
+        return ExitCode::kExitNotFound;
+      }
+      const std::string text = plot->parsed()
+                                   ? client::fit_svg(*curves, job_id + " (fit: data, model, Hertz)")
+                                   : client::fit_curves_csv(*curves);
+      if (output.empty()) {
+        std::fwrite(text.data(), 1, text.size(), stdout);
+        return ExitCode::kExitOk;
+      }
+      std::ofstream out(output, std::ios::binary | std::ios::trunc);
+      out << text;
+      if (!out) {
+        std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
+        return ExitCode::kExitUsage;
+      }
+      std::printf("%s\n", output.c_str());
       return ExitCode::kExitOk;
     }
     const bool flow = client::is_flow_result(h5);

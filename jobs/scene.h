@@ -34,6 +34,9 @@ struct RunOptions {
   int threads = 0;           // OpenMP threads for the physics; 0: the spec's / default
   int debug_delay_per_point_ms = 0;  // testing aid: a cancellable pause after each load point (quasi-static)
   std::string program_version = "0.1.0";
+  // fit: the curve library's cache directory; empty: jobs::default_library_dir()
+  // ($CELLFLOW_LIBRARY_DIR, $XDG_CACHE_HOME/cellflow/curves, ~/.cache/cellflow/curves).
+  std::string library_dir;
 };
 
 struct RunOutcome {

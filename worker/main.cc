@@ -31,6 +31,9 @@ int main(int argc, char** argv) {
   app.add_option("--debug-delay-per-point-ms", options.debug_delay_per_point_ms,
                  "testing aid: pause after each load point")
       ->capture_default_str();
+  app.add_option("--library-dir", options.library_dir,
+                 "fit jobs: the curve library's cache directory (default $CELLFLOW_LIBRARY_DIR, "
+                 "$XDG_CACHE_HOME/cellflow/curves or ~/.cache/cellflow/curves)");
   app.add_flag("--keep-results", options.keep_results, "keep the local copy of uploaded results");
   std::string token_file, tls_ca, tls_cert, tls_key;
   app.add_option("--token-file", token_file,

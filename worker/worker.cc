@@ -231,6 +231,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   run_options.result_path = temporary.string();
   run_options.threads = options_.threads;
   run_options.debug_delay_per_point_ms = options_.debug_delay_per_point_ms;
+  run_options.library_dir = options_.library_dir;
   // The spec runs with its uploaded mesh's bytes; the result records the spec as leased.
   v1::JobSpec spec = leased.spec();
   RunOutcome outcome;

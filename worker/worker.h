@@ -32,6 +32,7 @@ struct WorkerOptions {
   // The worker credential (bearer_token) and TLS of the channel to the
   // server's worker listener; see worker/main.cc for where they come from.
   rpc::ChannelOptions channel;
+  std::string library_dir;           // fit jobs' curve library; empty: jobs::default_library_dir()
 };
 
 class Worker {

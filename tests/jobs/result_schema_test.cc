@@ -6,6 +6,7 @@
 #include <hdf5.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -177,6 +178,26 @@ TEST(ResultSchema, ShearFlowFileMatchesItsSchema) {
   n->set_box_z_radii(4);
   n->set_max_strain(1.0);
   const std::string path = run_to_file(spec, "shear_flow");
+  check_against_schema(path, schema);
+  fs::remove(path);
+}
+
+// A fit of one Hertz curve (the Hertz model needs no library simulation).
+TEST(ResultSchema, FitFileMatchesItsSchema) {
+  const json schema = load_schema("jobs/fit/result_schema.json");
+  v1::JobSpec spec;
+  auto* fit = spec.mutable_fit();
+  fit->set_geometry(v1::FIT_GEOMETRY_PLATES);
+  fit->set_radius_m(5e-6);
+  fit->set_model(v1::FIT_MODEL_HERTZ);
+  auto* curve = fit->add_curves();
+  curve->set_name("hertz");
+  for (int i = -5; i <= 40; ++i) {
+    const double x = i * 0.02e-6, eps = x / 10e-6;
+    curve->add_indentation_m(x);
+    curve->add_force_n(eps > 0 ? 4.0 / 3.0 / (1 - 0.48 * 0.48) * 100.0 * 25e-12 * std::pow(eps, 1.5) : 0.0);
+  }
+  const std::string path = run_to_file(spec, "fit");
   check_against_schema(path, schema);
   fs::remove(path);
 }

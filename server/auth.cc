@@ -1,32 +1,14 @@
 #include "server/auth.h"
 
-#include <openssl/evp.h>
-
 #include <cctype>
 #include <cstdio>
 #include <fstream>
 
+#include "server/encoding.h"
+
 namespace cellflow::server {
 
 namespace {
-
-constexpr char kBase64Url[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
-
-std::string base64url(const unsigned char* data, std::size_t size) {
-  std::string out;
-  int bits = 0;
-  unsigned value = 0;
-  for (std::size_t i = 0; i < size; ++i) {
-    value = (value << 8) | data[i];
-    bits += 8;
-    while (bits >= 6) {
-      bits -= 6;
-      out += kBase64Url[(value >> bits) & 63];
-    }
-  }
-  if (bits > 0) out += kBase64Url[(value << (6 - bits)) & 63];
-  return out;
-}
 
 bool starts_with(std::string_view s, std::string_view prefix) {
   return s.substr(0, prefix.size()) == prefix;
@@ -88,21 +70,11 @@ StatusOr<std::string> generate_token() {
   if (!in.read(reinterpret_cast<char*>(bytes), sizeof bytes)) {
     return Status(StatusCode::kInternal, "cannot read 32 bytes from /dev/urandom");
   }
-  return base64url(bytes, sizeof bytes);
+  return base64url(std::string_view(reinterpret_cast<const char*>(bytes), sizeof bytes));
 }
 
 std::string hash_token(std::string_view token) {
-  unsigned char digest[EVP_MAX_MD_SIZE];
-  unsigned int length = 0;
-  EVP_Digest(token.data(), token.size(), digest, &length, EVP_sha256(), nullptr);
-  std::string hex;
-  hex.reserve(2 * length);
-  char buffer[3];
-  for (unsigned int i = 0; i < length; ++i) {
-    std::snprintf(buffer, sizeof buffer, "%02x", digest[i]);
-    hex += buffer;
-  }
-  return hex;
+  return sha256_hex(token);
 }
 
 bool valid_user_name(const std::string& name) {

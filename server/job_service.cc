@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "jobs/registry.h"
+#include "server/encoding.h"
 
 namespace cellflow::server {
 
@@ -32,41 +33,6 @@ StatusOr<std::int64_t> parse_id(const std::string& job_id, const char* field) {
   auto id = parse_job_name(job_id);
   if (!id) return invalid_argument(std::string(field) + ": \"" + job_id + "\" is not a job id (job-<n>)");
   return *id;
-}
-
-const char kBase64Url[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
-
-std::string base64url(const std::string& in) {
-  std::string out;
-  int bits = 0;
-  unsigned value = 0;
-  for (unsigned char c : in) {
-    value = (value << 8) | c;
-    bits += 8;
-    while (bits >= 6) {
-      bits -= 6;
-      out += kBase64Url[(value >> bits) & 63];
-    }
-  }
-  if (bits > 0) out += kBase64Url[(value << (6 - bits)) & 63];
-  return out;
-}
-
-std::optional<std::string> unbase64url(const std::string& in) {
-  std::string out;
-  int bits = 0;
-  unsigned value = 0;
-  for (char c : in) {
-    const char* p = std::strchr(kBase64Url, c);
-    if (p == nullptr || c == '\0') return std::nullopt;
-    value = (value << 6) | static_cast<unsigned>(p - kBase64Url);
-    bits += 6;
-    if (bits >= 8) {
-      bits -= 8;
-      out += static_cast<char>((value >> bits) & 0xff);
-    }
-  }
-  return out;
 }
 
 // HDF5's format signature, at offset 0 or a power of two from 512 (a user block).

@@ -12,13 +12,9 @@
 
 #include "cellflow/v1/service.pb.h"
 #include "physics/core/status.h"
+#include "server/encoding.h"  // sha256_hex, is_sha256_hex
 
 namespace cellflow::server {
-
-// Lowercase hex SHA-256 (OpenSSL libcrypto).
-std::string sha256_hex(std::string_view bytes);
-// 64 lowercase hex digits.
-bool is_sha256_hex(std::string_view text);
 
 class MeshStore {
  public:

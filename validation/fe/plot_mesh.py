@@ -86,3 +86,37 @@ def main():
 
 if __name__ == "__main__":
     main()
+
+
+def jacobians(run, k=-1, elset_first=None):
+    """J = det F at the centre of each cell element (quadratic serendipity map, hoop stretch r / R)
+    for frd block k; returns (min J, max J)."""
+    nodes, elems = read_inp(os.path.join(run, "job.inp"))
+    d = read_disp(os.path.join(run, "job.frd"))[k]
+    cell = []
+    mode = None
+    for ln in open(os.path.join(run, "job.inp")):
+        if ln.startswith("*"):
+            mode = "CELL" if (ln.upper().startswith("*ELEMENT") and "ELSET=CELL" in ln.upper()) else None
+            continue
+        if mode == "CELL":
+            v = [int(x) for x in ln.replace(",", " ").split()]
+            cell.append(v[1:9])
+    # quad8 shape function derivatives at the centre (xi = eta = 0)
+    dN = [(-0.0, -0.0)] * 8
+    dxi = [0, 0, 0, 0, 0, 0.5, 0, -0.5]
+    deta = [0, 0, 0, 0, -0.5, 0, 0.5, 0]
+    N = [-0.25, -0.25, -0.25, -0.25, 0.5, 0.5, 0.5, 0.5]
+    Js = []
+    for e in cell:
+        X = [nodes[n] for n in e]
+        x = [(nodes[n][0] + d.get(n, (0, 0))[0], nodes[n][1] + d.get(n, (0, 0))[1]) for n in e]
+
+        def jac(P):
+            a = sum(dxi[i] * P[i][0] for i in range(8)); b = sum(deta[i] * P[i][0] for i in range(8))
+            c = sum(dxi[i] * P[i][1] for i in range(8)); dd = sum(deta[i] * P[i][1] for i in range(8))
+            return a * dd - b * c
+        R0 = sum(N[i] * X[i][0] for i in range(8)); r = sum(N[i] * x[i][0] for i in range(8))
+        Js.append((jac(x) / jac(X) * (r / R0 if R0 > 1e-12 else 1.0), R0, sum(N[i] * X[i][1] for i in range(8))))
+    jm = min(Js)
+    return jm[0], max(Js)[0], (round(jm[1], 3), round(jm[2], 3))

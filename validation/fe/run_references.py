@@ -23,6 +23,7 @@ import json
 import math
 import os
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -242,12 +243,14 @@ CASES = {
     "plates_w1": dict(kind="plates", R=8.6, E=150.0, w=1.0, eps_max=0.8, pole_beta=0.5),
     "plates_w0.5": dict(kind="plates", R=8.6, E=150.0, w=0.5, eps_max=0.8, pole_beta=0.5),
     "plates_w0.25": dict(kind="plates", R=8.6, E=150.0, w=0.25, eps_max=0.8, pole_beta=0.5),
+    # small-deformation (Hertz-limit) run of plates_w1: to eps = 0.05, mesh clustered at the pole
+    "plates_w1_hertz": dict(kind="plates", R=8.6, E=150.0, w=1.0, eps_max=0.05, pole_beta=0.85),
     # colloidal probe: cell R=40 on a plate, probe Rp=26.5, 20 um
     "colloidal_probe": dict(kind="probe", R=40.0, Rp=26.5, E=580.0, w=1.0, d_max=20.0,
-                            theta=math.radians(75), pole_beta=0.0),
+                            theta=math.radians(75), pole_beta=0.8),
     # AFM-like small probe: Rp=2.5 on R=8, 2 um, refined at the top pole
     "small_probe": dict(kind="probe", R=8.0, Rp=2.5, E=1000.0, w=1.0, d_max=2.0,
-                        theta=math.radians(80), pole_beta=0.6),
+                        theta=math.radians(80), pole_beta=0.8),
 }
 
 # mesh level -> elements per block edge (3 n^2 elements per quarter disk)
@@ -470,9 +473,12 @@ def run_one(case, level, tag="", **kw):
     env = dict(os.environ, OMP_NUM_THREADS="1", CCX_NPROC_EQUATION_SOLVER="1",
                CCX_NPROC_RESULTS="1", CCX_NPROC_STIFFNESS="1")
     t0 = time.time()
+    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     with open(os.path.join(wd, "ccx.log"), "w") as log:
         rc = subprocess.call(["ccx", "-i", "job"], cwd=wd, stdout=log, stderr=subprocess.STDOUT, env=env)
     dt = time.time() - t0
+    ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
     logtxt = open(os.path.join(wd, "ccx.log")).read()
     ok = rc == 0 and "Job finished" in logtxt and "*ERROR" not in logtxt
     tot = parse_totals(os.path.join(wd, "job.dat"))
@@ -497,10 +503,11 @@ def run_one(case, level, tag="", **kw):
         for r in rows:
             f.write("%.8g,%.8g,%.8g\n" % r)
     nerr = logtxt.count("increment size smaller") + logtxt.count("*ERROR")
-    res = dict(run=name, case=case, level=level, ok=ok, rc=rc, seconds=round(dt, 1), points=len(rows),
+    res = dict(run=name, case=case, level=level, ok=ok, rc=rc, seconds=round(dt, 1), cpu_seconds=round(cpu, 1),
+               load_average=round(os.getloadavg()[0], 1), points=len(rows),
                reached=(rows[-1][0] if rows else 0.0), info=info, kw={k: v for k, v in kw.items()},
                increments=logtxt.count("increment"), **extra)
-    print("%-32s ok=%s %.1fs points=%d reached=%.4g nodes=%d" % (name, ok, dt, len(rows), res["reached"],
+    print("%-32s ok=%s %.1fs (cpu %.1fs) points=%d reached=%.4g nodes=%d" % (name, ok, dt, cpu, len(rows), res["reached"],
                                                                    info["nodes"]), flush=True)
     return res
 
@@ -594,20 +601,23 @@ def report(cases, levels, allres):
     for case in cases:
         cfg = CASES[case]
         ck = CHECK["plates" if cfg["kind"] == "plates" else case]
+        if case == "plates_w1_hertz":
+            ck = dict(points=[0.005, 0.01, 0.02, 0.05], hertz=[0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05],
+                      unit=1.0, label="eps")
         have = [lv for lv in levels if os.path.exists(os.path.join(CURVES, "%s_L%d.csv" % (case, lv)))]
         if not have:
             continue
         curves = {lv: read_curve("%s_L%d" % (case, lv)) for lv in have}
         out.append("#### %s" % case)
         out.append("")
-        out.append("| level | n | cell elements | nodes | ccx run time [s] | finished | reached | points |")
-        out.append("|---|---|---|---|---|---|---|---|")
+        out.append("| level | n | cell elements | nodes | ccx wall [s] | ccx cpu [s] | finished | reached | points |")
+        out.append("|---|---|---|---|---|---|---|---|---|")
         for lv in have:
             r = runs.get("%s_L%d" % (case, lv), {})
             inf = r.get("info", {})
             reached = r.get("reached", 0.0) / ck["unit"]
-            out.append("| L%d | %s | %s | %s | %s | %s | %.4g | %s |" % (lv, inf.get("n", ""), inf.get("cell_elements", ""),
-                                                               inf.get("nodes", ""), r.get("seconds", ""),
+            out.append("| L%d | %s | %s | %s | %s | %s | %s | %.4g | %s |" % (lv, inf.get("n", ""), inf.get("cell_elements", ""),
+                                                               inf.get("nodes", ""), r.get("seconds", ""), r.get("cpu_seconds", "-"),
                                                                "yes" if r.get("ok") else "NO", reached, r.get("points", "")))
         out.append("")
         fin = have[-1]
@@ -635,6 +645,29 @@ def report(cases, levels, allres):
                 F = interp(curves[lv], xv)
                 cells.append("%.4f" % (F / hertz_of(case, xv)) if F else "-")
             out.append("| %g | " % x + " | ".join(cells) + " |")
+        out.append("")
+    # studies: tagged runs against the untagged run of the same case and level
+    st = [r for r in runs.values() if r["run"] != "%s_L%d" % (r["case"], r["level"]) and r["case"] in cases]
+    if st:
+        out.append("#### studies (tagged runs) against the default run of the same level")
+        out.append("")
+        out.append("| run | setting | finished | reached | force change vs default at the check points |")
+        out.append("|---|---|---|---|---|")
+        for r in sorted(st, key=lambda r: r["run"]):
+            base = "%s_L%d" % (r["case"], r["level"])
+            cfg = CASES[r["case"]]
+            ck = CHECK["plates" if cfg["kind"] == "plates" else r["case"]]
+            try:
+                cb, ct = read_curve(base), read_curve(r["run"])
+            except OSError:
+                continue
+            cells = []
+            for x in ck["points"]:
+                fb, ft = interp(cb, x * ck["unit"]), interp(ct, x * ck["unit"])
+                cells.append("%g: %s" % (x, ("%+.3f %%" % (100 * (ft - fb) / fb)) if fb and ft else "-"))
+            setting = ", ".join("%s=%g" % (k, v) if isinstance(v, float) else "%s=%s" % (k, v) for k, v in r["kw"].items())
+            out.append("| %s | %s | %s | %.4g | %s |" % (r["run"], setting, "yes" if r["ok"] else "NO",
+                                                         r["reached"] / ck["unit"], "; ".join(cells)))
         out.append("")
     return "\n".join(out) + "\n"
 

@@ -5,7 +5,7 @@ Generates the meshes, writes the decks, runs ccx (single-threaded), parses the
 total reaction force from the .dat file and writes the force curves as CSV.
 Python 3 standard library only.
 
-  python3 validation/fe/run_references.py            # everything (all cases, levels, studies)
+  python3 validation/fe/run_references.py --studies  # everything: material check, all cases, levels, studies
   python3 validation/fe/run_references.py --case plates_w1 --levels 1 2 3
   python3 validation/fe/run_references.py --list
 
@@ -579,6 +579,18 @@ def material_check():
     return results
 
 
+# penalty and element studies (--studies): (case, level, tag, settings)
+STUDIES = [
+    ("plates_w1", 2, "_k1e3", dict(kfac=1e3)),
+    ("plates_w1", 2, "_k1e4", dict(kfac=1e4)),
+    ("plates_w1", 2, "_k1e6", dict(kfac=1e6)),
+    ("plates_w1", 2, "_cax8", dict(eltype="CAX8")),
+    ("colloidal_probe", 1, "_k1e4", dict(kfac=1e4)),
+    ("colloidal_probe", 1, "_k1e6", dict(kfac=1e6)),
+    ("small_probe", 1, "_k1e4", dict(kfac=1e4)),
+    ("small_probe", 1, "_k1e6", dict(kfac=1e6)),
+]
+
 CHECK = {
     "plates": dict(points=[0.05, 0.1, 0.3, 0.5, 0.675, 0.8], hertz=[0.002, 0.005, 0.01, 0.02, 0.05, 0.1], unit=1.0,
                    label="eps"),
@@ -674,7 +686,7 @@ def report(cases, levels, allres):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--case", nargs="*", default=list(CASES))
+    ap.add_argument("--case", nargs="*", default=None, help="default: all cases (and the material check)")
     ap.add_argument("--levels", nargs="*", type=int, default=DEFAULT_LEVELS)
     ap.add_argument("--kfac", type=float, default=KFAC)
     ap.add_argument("--eltype", default=ELTYPE)
@@ -683,12 +695,17 @@ def main():
     ap.add_argument("--no-reference", action="store_true", help="do not copy the finest level to curves/<case>.csv")
     ap.add_argument("--matcheck", action="store_true", help="only the one-element material mapping check")
     ap.add_argument("--list", action="store_true")
+    ap.add_argument("--studies", action="store_true",
+                    help="also run the penalty and element studies (tagged runs, see README)")
     ap.add_argument("--report", action="store_true", help="only rewrite convergence.md from the curves")
     a = ap.parse_args()
     if a.list:
         for k, v in CASES.items():
             print(k, v)
         return
+    everything = a.case is None
+    if a.case is None:
+        a.case = list(CASES)
     if a.report:
         allres = json.load(open(os.path.join(HERE, "results.json")))
         open(os.path.join(HERE, "convergence.md"), "w").write(report(a.case, a.levels, allres))
@@ -698,10 +715,11 @@ def main():
         sys.exit("ccx not found: run validation/fe/install-fe-deps.sh")
     resfile = os.path.join(HERE, "results.json")
     allres = json.load(open(resfile)) if os.path.exists(resfile) else {}
-    if a.matcheck:
+    if a.matcheck or everything:
         allres["matcheck"] = material_check()
-        json.dump(allres, open(resfile, "w"), indent=1)
-        return
+        json.dump(allres, open(resfile, "w"), indent=1, sort_keys=True)
+        if a.matcheck:
+            return
     for case in a.case:
         for lv in a.levels:
             kw = {}
@@ -717,6 +735,11 @@ def main():
         if not a.no_reference and not a.tag:
             best = "%s_L%d" % (case, max(a.levels))
             shutil.copy(os.path.join(CURVES, best + ".csv"), os.path.join(CURVES, case + ".csv"))
+    if a.studies:
+        for case, lv, tag, kw in STUDIES:
+            r = run_one(case, lv, tag=tag, **kw)
+            allres.setdefault("runs", {})[r["run"]] = r
+            json.dump(allres, open(resfile, "w"), indent=1, sort_keys=True)
     if not a.tag:
         open(os.path.join(HERE, "convergence.md"), "w").write(report(list(CASES), sorted(LEVELS), allres))
 

@@ -71,6 +71,11 @@ struct FitOptions {
   bool per_curve = true;                  // one fit per curve
   bool joint = true;                      // one fit of all curves (shared E and w)
   LibraryNumerics numerics;               // of the library curves
+  // Profile intervals: false (default) warm-starts each profile point's
+  // optimisation (local Brent searches of w and the s_c) from the previous
+  // point's optimum; true re-solves every point from scratch (global grid
+  // scans; slow for joint fits), the reference the default is tested against.
+  bool exact_profiles = false;
 };
 
 // A fitted value with its 95 % profile interval.

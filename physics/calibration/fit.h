@@ -30,6 +30,9 @@
 // The bounds are found by doubling steps and bisection; a bound that reaches
 // the parameter's range (w in [0, 1], the contact window, E > 0) is reported
 // there and flagged. Noiseless data (S_min = 0) give intervals of zero width.
+// Each profile point's minimisation starts from the previous point's optimum
+// (local Brent searches of w and the s_c; FitOptions::exact_profiles re-solves
+// each from scratch with the global scans instead).
 // When library curves of small w end before the deepest deformation the fit
 // needs (coarse meshes crush there), w is searched only down to the last
 // grid w whose curve reaches it; FitResult::notes says so, and an estimate at

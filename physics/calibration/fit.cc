@@ -5,6 +5,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <memory>
 
 #include "physics/calibration/models.h"
 #include "physics/core/violations.h"
@@ -88,6 +89,83 @@ struct Solution {
   std::vector<double> s;
 };
 
+// Brent's minimisation (golden section with parabolic steps) of f on [a, b]
+// from x0, to an interval shorter than tolerance: the warm-started searches of
+// the profiles, where the previous profile point's optimum lies near the new one.
+Minimum brent_1d(const std::function<double(double)>& f, double a, double b, double x0, double tolerance) {
+  constexpr double kGolden = 0.3819660112501051;
+  Minimum m;
+  if (!(b > a)) {
+    m.x = a;
+    m.value = f(a);
+    m.evaluations = 1;
+    return m;
+  }
+  double x = std::clamp(x0, a, b), w = x, v = x;
+  double fx = f(x), fw = fx, fv = fx;
+  int evaluations = 1;
+  double d = 0.0, e = 0.0;
+  for (int iter = 0; iter < 200; ++iter) {
+    const double mid = 0.5 * (a + b);
+    const double tol1 = 0.25 * tolerance, tol2 = 2.0 * tol1;
+    if (std::abs(x - mid) <= tol2 - 0.5 * (b - a)) break;
+    bool golden = true;
+    if (std::abs(e) > tol1) {
+      double r = (x - w) * (fx - fv), q = (x - v) * (fx - fw), p = (x - v) * q - (x - w) * r;
+      q = 2.0 * (q - r);
+      if (q > 0.0) p = -p;
+      q = std::abs(q);
+      const double e_old = e;
+      e = d;
+      if (std::abs(p) < std::abs(0.5 * q * e_old) && p > q * (a - x) && p < q * (b - x)) {
+        d = p / q;
+        const double u = x + d;
+        if (u - a < tol2 || b - u < tol2) d = mid >= x ? tol1 : -tol1;
+        golden = false;
+      }
+    }
+    if (golden) {
+      e = (x >= mid ? a : b) - x;
+      d = kGolden * e;
+    }
+    const double u = std::abs(d) >= tol1 ? x + d : x + (d > 0.0 ? tol1 : -tol1);
+    const double fu = f(u);
+    ++evaluations;
+    if (fu <= fx) {
+      (u >= x ? a : b) = x;
+      v = w, fv = fw, w = x, fw = fx, x = u, fx = fu;
+    } else {
+      (u < x ? a : b) = u;
+      if (fu <= fw || w == x) {
+        v = w, fv = fw, w = u, fw = fu;
+      } else if (fu <= fv || v == x || v == w) {
+        v = u, fv = fu;
+      }
+    }
+  }
+  m.x = x;
+  m.value = fx;
+  m.evaluations = evaluations;
+  return m;
+}
+
+// Local minimum of f in [lo, hi] near x0: Brent in a window of half-width
+// `half` around x0, moved and widened while the minimum lies at a window edge
+// that is not the range's.
+Minimum local_minimise_1d(const std::function<double(double)>& f, double x0, double half, double lo,
+                          double hi, double tolerance) {
+  Minimum m;
+  for (int k = 0; k < 30; ++k) {
+    const double a = std::max(lo, x0 - half), b = std::min(hi, x0 + half);
+    m = brent_1d(f, a, b, x0, tolerance);
+    const bool at_lower = a > lo && m.x - a <= tolerance, at_upper = b < hi && b - m.x <= tolerance;
+    if (!at_lower && !at_upper) break;
+    x0 = m.x;
+    half *= 2.0;
+  }
+  return m;
+}
+
 // A set of curves sharing E and w.
 class Problem {
  public:
@@ -111,6 +189,22 @@ class Problem {
       sol.w = minimise_1d([&](double w) { return solve_at_w(w, fix, scratch); }, w_lo_, w_hi_, 1e-5, 9).x;
     }
     solve_at_w(sol.w, fix, sol);
+    return sol;
+  }
+
+  // min S over the parameters fix leaves free, by local searches from start
+  // (the optimum of a neighbouring profile point)
+  Solution solve_warm(const Fix& fix, const Solution& start) const {
+    Solution sol;
+    if (fix.w || !w_free()) {
+      sol.w = fix.w ? *fix.w : w_lo_;
+    } else {
+      Solution scratch;
+      sol.w = local_minimise_1d([&](double w) { return solve_at_w_warm(w, fix, start.s, scratch); }, start.w,
+                                0.02, w_lo_, w_hi_, 1e-5)
+                  .x;
+    }
+    solve_at_w_warm(sol.w, fix, start.s, sol);
     return sol;
   }
 
@@ -182,6 +276,67 @@ class Problem {
         }
         if (largest_move <= tolerance) break;
       }
+    }
+    Sums total;
+    for (const Sums& t : sums) total += t;
+    sol.e = total.b > 0.0 ? total.a / total.b : 0.0;
+    sol.objective = objective_free_e(total);
+    return sol.objective;
+  }
+
+  // solve_at_w by local searches of each s_c from s0
+  double solve_at_w_warm(double w, const Fix& fix, const std::vector<double>& s0, Solution& sol) const {
+    const std::size_t n = curves_.size();
+    sol.s = s0;
+    sol.s.resize(n, 0.0);
+    sol.w = w;
+    std::vector<Sums> sums(n);
+    std::vector<bool> free(n);
+    for (std::size_t c = 0; c < n; ++c) {
+      free[c] = s_free(c) && fix.s_curve != static_cast<int>(c);
+      if (fix.s_curve == static_cast<int>(c)) sol.s[c] = fix.s_value;
+      if (!s_free(c)) sol.s[c] = 0.0;
+    }
+    const auto minimise_s = [&](std::size_t c, const std::function<double(const Sums&)>& objective) {
+      const Prepared& p = *curves_[c];
+      const Minimum m = local_minimise_1d([&](double s) { return objective(curve_sums(p, w, s)); }, sol.s[c],
+                                          0.02 * p.window, -p.window, p.window, 1e-7 * p.radius);
+      sol.s[c] = m.x;
+      sums[c] = curve_sums(p, w, m.x);
+    };
+    if (fix.e) {
+      const double e = *fix.e;
+      for (std::size_t c = 0; c < n; ++c) {
+        if (free[c]) {
+          minimise_s(c, [e](const Sums& t) { return objective_at_e(t, e); });
+        } else {
+          sums[c] = curve_sums(*curves_[c], w, sol.s[c]);
+        }
+      }
+      Sums total;
+      for (const Sums& t : sums) total += t;
+      sol.e = e;
+      sol.objective = objective_at_e(total, e);
+      return sol.objective;
+    }
+    for (std::size_t c = 0; c < n; ++c) sums[c] = curve_sums(*curves_[c], w, sol.s[c]);
+    for (int sweep = 0; sweep < 30; ++sweep) {
+      double largest_move = 0.0, tolerance = 0.0;
+      int n_free = 0;
+      for (std::size_t c = 0; c < n; ++c) {
+        if (!free[c]) continue;
+        ++n_free;
+        Sums total;
+        for (const Sums& t : sums) total += t;
+        const Sums others = total - sums[c];
+        const double before = sol.s[c];
+        minimise_s(c, [&](const Sums& t) {
+          return objective_free_e({others.a + t.a, others.b + t.b, others.c + t.c});
+        });
+        largest_move = std::max(largest_move, std::abs(sol.s[c] - before));
+        tolerance = std::max(tolerance, 1e-6 * curves_[c]->radius);
+      }
+      if (n_free <= 1 || largest_move <= tolerance) break;
     }
     Sums total;
     for (const Sums& t : sums) total += t;
@@ -262,22 +417,33 @@ ParameterFit run_fit(const Problem& problem, const FitOptions& options) {
   // S_prof(theta) - S_min <= 3.841 S_min / (N - p)
   const double threshold = best.objective * (1.0 + kChiSquare95 / (n_points - n_params));
 
-  fit.youngs_modulus_pa = profile_interval(best.e, 1e-6 * best.e, 1e6 * best.e, 0.01 * best.e, threshold,
-                                           [&](double e) { return problem.solve(fix_e(e)).objective; });
-  fit.mooney_rivlin_w = problem.w_free()
-                            ? profile_interval(best.w, problem.w_lo(), problem.w_hi(), 0.01, threshold,
-                                               [&](double w) { return problem.solve(fix_w(w)).objective; })
-                            : fixed_estimate(best.w);
+  // Each profile point's optimum starts from the previous point's (from the
+  // optimum at the start of each direction); exact_profiles re-solves each from scratch.
+  const auto profile = [&](double centre, const std::function<Fix(double)>& fix) {
+    auto last = std::make_shared<Solution>(best);
+    auto side = std::make_shared<int>(0);
+    return [&problem, &options, &best, centre, fix, last, side](double theta) {
+      if (options.exact_profiles) return problem.solve(fix(theta)).objective;
+      const int now = theta > centre ? 1 : -1;
+      if (now != *side) *last = best, *side = now;
+      *last = problem.solve_warm(fix(theta), *last);
+      return last->objective;
+    };
+  };
+  fit.youngs_modulus_pa =
+      profile_interval(best.e, 1e-6 * best.e, 1e6 * best.e, 0.01 * best.e, threshold, profile(best.e, fix_e));
+  fit.mooney_rivlin_w = problem.w_free() ? profile_interval(best.w, problem.w_lo(), problem.w_hi(), 0.01,
+                                                            threshold, profile(best.w, fix_w))
+                                         : fixed_estimate(best.w);
   for (std::size_t c = 0; c < problem.size(); ++c) {
     const Prepared& p = problem.curve(c);
     CurvePart part;
     part.name = p.name;
     part.contact_offset_m =
-        problem.s_free(c) ? profile_interval(best.s[c], -p.window, p.window, 0.002 * p.radius, threshold,
-                                             [&](double s) {
-                                               return problem.solve(fix_s(static_cast<int>(c), s)).objective;
-                                             })
-                          : fixed_estimate(best.s[c]);
+        problem.s_free(c)
+            ? profile_interval(best.s[c], -p.window, p.window, 0.002 * p.radius, threshold,
+                               profile(best.s[c], [c](double s) { return fix_s(static_cast<int>(c), s); }))
+            : fixed_estimate(best.s[c]);
     part.points = p.index;
     double sum = 0.0;
     for (std::size_t i = 0; i < p.x.size(); ++i) {

@@ -30,6 +30,9 @@
 // The bounds are found by doubling steps and bisection; a bound that reaches
 // the parameter's range (w in [0, 1], the contact window, E > 0) is reported
 // there and flagged. Noiseless data (S_min = 0) give intervals of zero width.
+// Each profile point's minimisation starts from the previous point's optimum
+// (local Brent searches of w and the s_c; FitOptions::exact_profiles re-solves
+// each from scratch with the global scans instead).
 // When library curves of small w end before the deepest deformation the fit
 // needs (coarse meshes crush there), w is searched only down to the last
 // grid w whose curve reaches it; FitResult::notes says so, and an estimate at
@@ -71,6 +74,11 @@ struct FitOptions {
   bool per_curve = true;                  // one fit per curve
   bool joint = true;                      // one fit of all curves (shared E and w)
   LibraryNumerics numerics;               // of the library curves
+  // Profile intervals: false (default) warm-starts each profile point's
+  // optimisation (local Brent searches of w and the s_c) from the previous
+  // point's optimum; true re-solves every point from scratch (global grid
+  // scans; slow for joint fits), the reference the default is tested against.
+  bool exact_profiles = false;
 };
 
 // A fitted value with its 95 % profile interval.

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "tests/calibration/calibration_test_util.h"
 
@@ -145,6 +146,77 @@ TEST(FitCurves, JointFitSharesEAndWAndKeepsAContactPerCurve) {
             fit->per_curve[1].youngs_modulus_pa.upper - fit->per_curve[1].youngs_modulus_pa.lower);
   // the model curve comes with the fit
   EXPECT_EQ(joint.curves[0].model_force_n.size(), joint.curves[0].points.size());
+}
+
+// Joint fits of two and five curves on a warm library: the warm-started
+// profiles (default) against FitOptions::exact_profiles (every profile point
+// re-solved from scratch, the previous implementation): the estimates are the
+// same solve, the interval bounds agree within 1e-3 of E, 1e-3 in w and
+// 1e-3 R. The exact five-curve reference takes ~11 s; it runs when
+// CELLFLOW_FIT_EXACT_FIVE is set, else five curves are timed only.
+TEST(FitCurves, WarmStartedProfilesMatchExactProfiles) {
+  const scenes::QuasiStaticResult run = testing::run_plates(150.0, 0.5, 400, 30, 0.75);
+  ASSERT_TRUE(run.status.ok()) << run.status.to_string();
+  const double offsets[] = {0.04, -0.02, 0.01, 0.03, -0.01};
+  std::vector<MeasuredCurve> curves;
+  for (int c = 0; c < 5; ++c) {
+    curves.push_back(testing::measured_from(run, kRadius, offsets[c] * kRadius, 0.03, 31u + c));
+  }
+  LibraryOptions lib = testing::same_mesh_options();
+  lib.w_grid = {0.0, 0.25, 0.5, 0.75, 1.0};
+  CurveLibrary library(lib);
+  FitOptions options;
+  options.numerics = testing::coarse_numerics();
+  options.per_curve = false;
+  ASSERT_TRUE(fit_curves(curves, options, library).ok());  // warms the library
+  const auto close = [](const Estimate& a, const Estimate& b, double tolerance) {
+    EXPECT_EQ(a.value, b.value);
+    EXPECT_NEAR(a.lower, b.lower, tolerance);
+    EXPECT_NEAR(a.upper, b.upper, tolerance);
+    EXPECT_EQ(a.lower_at_bound, b.lower_at_bound);
+    EXPECT_EQ(a.upper_at_bound, b.upper_at_bound);
+  };
+  const bool exact_five = std::getenv("CELLFLOW_FIT_EXACT_FIVE") != nullptr;
+  for (const std::size_t n : {std::size_t{2}, std::size_t{5}}) {
+    const std::vector<MeasuredCurve> some(curves.begin(), curves.begin() + n);
+    auto start = std::chrono::steady_clock::now();
+    StatusOr<FitResult> fast = fit_curves(some, options, library);
+    const double fast_seconds = seconds_since(start);
+    ASSERT_TRUE(fast.ok()) << fast.status().to_string();
+    EXPECT_EQ(fast->simulations_run, 0);
+    print_fit(n == 2 ? "joint of 2, warm-started profiles" : "joint of 5, warm-started profiles",
+              *fast->joint);
+    std::printf("joint of %zu curves, warm-started profiles: %.3f s\n", n, fast_seconds);
+    if (n == 5 && !exact_five) continue;
+    FitOptions exact_options = options;
+    exact_options.exact_profiles = true;
+    start = std::chrono::steady_clock::now();
+    StatusOr<FitResult> exact = fit_curves(some, exact_options, library);
+    const double exact_seconds = seconds_since(start);
+    ASSERT_TRUE(exact.ok()) << exact.status().to_string();
+    print_fit("exact profiles", *exact->joint);
+    std::printf("joint of %zu curves, exact profiles: %.3f s\n", n, exact_seconds);
+    const ParameterFit& a = *fast->joint;
+    const ParameterFit& b = *exact->joint;
+    EXPECT_EQ(a.objective, b.objective);
+    std::printf("largest bound difference: E %.2e (relative), w %.2e",
+                std::max(std::abs(a.youngs_modulus_pa.lower - b.youngs_modulus_pa.lower),
+                         std::abs(a.youngs_modulus_pa.upper - b.youngs_modulus_pa.upper)) /
+                    b.youngs_modulus_pa.value,
+                std::max(std::abs(a.mooney_rivlin_w.lower - b.mooney_rivlin_w.lower),
+                         std::abs(a.mooney_rivlin_w.upper - b.mooney_rivlin_w.upper)));
+    double ds = 0.0;
+    for (std::size_t c = 0; c < n; ++c) {
+      ds = std::max({ds, std::abs(a.curves[c].contact_offset_m.lower - b.curves[c].contact_offset_m.lower),
+                     std::abs(a.curves[c].contact_offset_m.upper - b.curves[c].contact_offset_m.upper)});
+    }
+    std::printf(", s %.2e R\n", ds / kRadius);
+    close(a.youngs_modulus_pa, b.youngs_modulus_pa, 1e-3 * b.youngs_modulus_pa.value);
+    close(a.mooney_rivlin_w, b.mooney_rivlin_w, 1e-3);
+    for (std::size_t c = 0; c < n; ++c) {
+      close(a.curves[c].contact_offset_m, b.curves[c].contact_offset_m, 1e-3 * kRadius);
+    }
+  }
 }
 
 // Probe indentation (Rp = R, 600 vertices: the probe much wider than the

@@ -3,7 +3,9 @@
 //   height_um, piezo height (nm), z (um)        -> height (towards the sample)
 //   deflection (nm)                             -> deflection
 //   tip position (um), tip_position_m           -> tip position
-//   indentation (um), deformation_m             -> tip position relative to contact
+//   indentation (um), deformation_m,
+//   displacement_m                              -> tip position relative to contact
+//   deformation (no unit: delta / 2R)           -> ignored (needs R; a length column must be there)
 //   time_s, time (ms)                           -> time
 //   segment                                     -> approach/extend/0, retract/1, pause/2
 // A column with a dimension needs a unit; an unknown or mismatched unit is an
@@ -31,7 +33,8 @@ Role role_of(std::string quantity) {
   if (quantity.find("force") != std::string::npos) return Role::kForce;
   if (quantity.find("deflection") != std::string::npos) return Role::kDeflection;
   if (quantity.find("indentation") != std::string::npos ||
-      quantity.find("deformation") != std::string::npos) {
+      quantity.find("deformation") != std::string::npos ||
+      quantity.find("displacement") != std::string::npos) {
     return Role::kIndentation;
   }
   if (quantity.find("tip") != std::string::npos) return Role::kTip;
@@ -92,6 +95,13 @@ StatusOr<ForceCurve> read_column_text(const std::string& path, std::string_view 
     const HeaderName h = split_header_name(name);
     Column c;
     c.role = role_of(h.quantity);
+    // A deformation without a unit is the dimensionless delta / (2 R): the
+    // reader knows no R, so it leaves the column to a length column beside
+    // it (a file of cellflow-run or validation/fe has displacement_m too).
+    if (c.role == Role::kIndentation && h.unit.empty() &&
+        h.quantity.find("deformation") != std::string::npos) {
+      c.role = Role::kIgnored;
+    }
     const Dimension want = dimension_of(c.role);
     if (want != Dimension::kNone) {
       if (h.unit.empty()) {

@@ -136,5 +136,20 @@ TEST(AfmColumnText, ReadsUnitsFromTheHeader) {
   EXPECT_EQ(c->segments[1].kind, SegmentKind::kRetract);
 }
 
+// The curves cellflow-run and validation/fe write: a dimensionless
+// deformation (ignored: it needs R) beside the displacement in metres.
+TEST(AfmColumnText, ReadsCurvesOfCellflowRunAndTheFeReferences) {
+  namespace fs = std::filesystem;
+  const fs::path p = fs::temp_directory_path() / ("afm-fe-" + std::to_string(::getpid()) + ".csv");
+  std::ofstream(p) << "deformation,displacement_m,force_n\n0.01,1.72e-07,1e-11\n0.02,3.44e-07,3e-11\n";
+  auto c = read_force_curve(p.string());
+  fs::remove(p);
+  ASSERT_TRUE(c.ok()) << c.status().message();
+  ASSERT_EQ(c->segments.size(), 1u);
+  ASSERT_EQ(c->segments[0].force_n.size(), 2u);
+  EXPECT_DOUBLE_EQ(c->segments[0].force_n[1], 3e-11);
+  EXPECT_EQ(c->metadata.height_channel, "indentation");
+}
+
 }  // namespace
 }  // namespace cellflow::afm

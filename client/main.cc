@@ -16,6 +16,7 @@
 #include "client/fit_input.h"
 #include "client/fit_output.h"
 #include "client/flow_output.h"
+#include "client/output_file.h"
 #include "client/rpc_client.h"
 #include "client/watch_printer.h"
 #include "io/xdmf.h"
@@ -415,7 +416,8 @@ int main(int argc, char** argv) {
   auto* result =
       app.add_subcommand("result", "fetch a job's result: the HDF5 file (+ XDMF) or the curve as CSV");
   result->add_option("job", job_id, "job id")->required();
-  result->add_option("-o,--output", output, "output file (.h5; with --csv: .csv, default stdout)");
+  result->add_option("-o,--output", output,
+                     "output file (.h5; with --csv: .csv, default stdout); - for stdout");
   result->add_flag("--csv", csv,
                    "the force-deformation curve (compression, indentation) or the deformation time series "
                    "D(t) (shear flow) as CSV");
@@ -428,7 +430,7 @@ int main(int argc, char** argv) {
       "against strain (shear flow); with --against capillary-number the steady D of several shear-flow "
       "jobs against Ca beside Roscoe's theory");
   plot->add_option("jobs", plot_jobs, "job id(s)")->required();
-  plot->add_option("-o,--output", output, "SVG file")->required();
+  plot->add_option("-o,--output", output, "SVG file (.svg), - for stdout")->required();
   plot->add_option("--against", against, "steady D of the given shear-flow jobs against this quantity")
       ->check(CLI::IsMember({"capillary-number"}));
 
@@ -446,6 +448,18 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? ExitCode::kExitOk : ExitCode::kExitUsage;
   }
+
+  // An output name whose extension is not the format written is refused before anything is fetched.
+  if (result->parsed() || plot->parsed()) {
+    const std::string error = plot->parsed() ? client::check_output_name(output, "SVG", {".svg"})
+                              : csv          ? client::check_output_name(output, "CSV", {".csv"})
+                                             : client::check_output_name(output, "HDF5", {".h5", ".hdf5"});
+    if (!error.empty()) {
+      std::fprintf(stderr, "cellflow: %s\n", error.c_str());
+      return ExitCode::kExitUsage;
+    }
+  }
+  const bool to_stdout = client::is_stdout_name(output);
 
   if (const std::string error = client::load_credentials(credentials, &options); !error.empty()) {
     std::fprintf(stderr, "cellflow: %s\n", error.c_str());
@@ -591,17 +605,16 @@ int main(int argc, char** argv) {
     }
     const std::string text = client::steady_deformation_svg(
         points, "steady deformation against capillary number (" + std::to_string(points.size()) + " jobs)");
-    std::ofstream out(output, std::ios::binary | std::ios::trunc);
-    out << text;
-    if (!out) {
+    if (!client::write_output(output, text)) {
       std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
       return ExitCode::kExitUsage;
     }
+    // The summary on stdout beside a file, on stderr when stdout is the SVG.
     for (const auto& p : points) {
-      std::printf("%s  Ca %.6g  steady D %.6g  (%s)\n", p.label.c_str(), p.capillary_number,
-                  p.steady_taylor_deformation, p.stop.c_str());
+      std::fprintf(to_stdout ? stderr : stdout, "%s  Ca %.6g  steady D %.6g  (%s)\n", p.label.c_str(),
+                   p.capillary_number, p.steady_taylor_deformation, p.stop.c_str());
     }
-    std::printf("%s\n", output.c_str());
+    if (!to_stdout) std::printf("%s\n", output.c_str());
     return ExitCode::kExitOk;
   }
 
@@ -613,7 +626,7 @@ int main(int argc, char** argv) {
     }
     TemporaryResult temporary;
     std::string h5 = output;
-    if (!want_file) {
+    if (!want_file || to_stdout) {
       temporary.path =
           (fs::temp_directory_path() / ("cellflow-" + job_id + "-" + std::to_string(::getpid()) + ".h5"))
               .string();
@@ -621,6 +634,16 @@ int main(int argc, char** argv) {
     }
     const grpc::Status status = client.download(job_id, h5);
     if (!status.ok()) return report_error(status, "result " + job_id);
+    if (want_file && to_stdout) {  // the HDF5 bytes themselves (no XDMF beside them)
+      std::ifstream in(h5, std::ios::binary);
+      std::ostringstream bytes;
+      bytes << in.rdbuf();
+      if (!in || !client::write_output(output, bytes.str())) {
+        std::fprintf(stderr, "cellflow: cannot copy the result of %s to stdout\n", job_id.c_str());
+        return ExitCode::kExitUsage;
+      }
+      return ExitCode::kExitOk;
+    }
     if (want_file) {
       const std::string xdmf = (fs::path(h5).replace_extension(".xdmf")).string();
       if (Status s = io::write_xdmf(h5, xdmf); s.ok()) {
@@ -640,17 +663,11 @@ int main(int argc, char** argv) {
       const std::string text = plot->parsed()
                                    ? client::fit_svg(*curves, job_id + " (fit: data, model, Hertz)")
                                    : client::fit_curves_csv(*curves);
-      if (output.empty()) {
-        std::fwrite(text.data(), 1, text.size(), stdout);
-        return ExitCode::kExitOk;
-      }
-      std::ofstream out(output, std::ios::binary | std::ios::trunc);
-      out << text;
-      if (!out) {
+      if (!client::write_output(output, text)) {
         std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
         return ExitCode::kExitUsage;
       }
-      std::printf("%s\n", output.c_str());
+      if (!output.empty() && !to_stdout) std::printf("%s\n", output.c_str());
       return ExitCode::kExitOk;
     }
     const bool flow = client::is_flow_result(h5);
@@ -677,17 +694,11 @@ int main(int argc, char** argv) {
     } else {
       text = client::curve_csv(*curve);
     }
-    if (output.empty()) {
-      std::fwrite(text.data(), 1, text.size(), stdout);
-      return ExitCode::kExitOk;
-    }
-    std::ofstream out(output, std::ios::binary | std::ios::trunc);
-    out << text;
-    if (!out) {
+    if (!client::write_output(output, text)) {
       std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
       return ExitCode::kExitUsage;
     }
-    std::printf("%s\n", output.c_str());
+    if (!output.empty() && !to_stdout) std::printf("%s\n", output.c_str());
     return ExitCode::kExitOk;
   }
   return ExitCode::kExitUsage;

@@ -14,6 +14,7 @@
 #include "client/exit_codes.h"
 #include "client/fit_output.h"
 #include "client/flow_output.h"
+#include "client/output_file.h"
 #include "client/svg_plot.h"
 #include "client/watch_printer.h"
 #include "io/h5md.h"
@@ -206,6 +207,29 @@ TEST(SvgPlot, FitPointsLieInsideTheFrameAndOffTheLegend) {
     s.hertz_force_n.push_back(f * 0.9);
   }
   expect_data_inside_and_off_the_legend(fit_svg({s}, "fit"), 12);
+}
+
+TEST(OutputFile, DashIsStdoutAndTheExtensionMustBeTheFormat) {
+  EXPECT_TRUE(is_stdout_name("-"));
+  EXPECT_FALSE(is_stdout_name("-.svg"));
+  EXPECT_EQ(check_output_name("-", "SVG", {".svg"}), "");
+  EXPECT_EQ(check_output_name("", "CSV", {".csv"}), "");
+  EXPECT_EQ(check_output_name("out/curve.svg", "SVG", {".svg"}), "");
+  EXPECT_EQ(check_output_name("CURVE.SVG", "SVG", {".svg"}), "");
+  EXPECT_EQ(check_output_name("r.hdf5", "HDF5", {".h5", ".hdf5"}), "");
+  EXPECT_EQ(check_output_name("x.png", "SVG", {".svg"}),
+            "-o x.png: the extension .png is not SVG output; use .svg (or - for stdout)");
+  EXPECT_EQ(check_output_name("result", "HDF5", {".h5", ".hdf5"}),
+            "-o result: no extension; use .h5 or .hdf5 (or - for stdout)");
+  const fs::path path =
+      fs::temp_directory_path() / ("cellflow_output_" + std::to_string(::getpid()) + ".csv");
+  ASSERT_TRUE(write_output(path.string(), "a,b\n"));
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "a,b");
+  fs::remove(path);
+  EXPECT_FALSE(write_output("/nonexistent-dir/x.csv", "a"));
 }
 
 TEST(WatchPrinter, LinesAreStableKeyValueText) {

@@ -465,6 +465,24 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   ASSERT_EQ(code, 0);
   run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + svg_path, &code);
   EXPECT_EQ(code, 0) << "the SVG is not well-formed XML";
+  // -o - is stdout, not a file named "-"; a wrong extension is refused naming both.
+  const std::string svg_stdout =
+      run_command("cd " + dir_.string() + " && " + cli + " plot " + id + " -o -", &code);
+  EXPECT_EQ(code, 0);
+  EXPECT_EQ(svg_stdout, read_text(svg_path));
+  EXPECT_FALSE(fs::exists(dir_ / "-"));
+  EXPECT_EQ(run_command(cli + " result " + id + " --csv -o -", &code), csv);
+  EXPECT_EQ(code, 0);
+  const std::string h5_stdout = run_command(cli + " result " + id + " -o - | cmp - " + h5, &code);
+  EXPECT_EQ(code, 0) << h5_stdout;
+  const std::string png = run_command(cli + " plot " + id + " -o " + (dir_ / "x.png").string(), &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(png.find(".png is not SVG output; use .svg"), std::string::npos) << png;
+  EXPECT_FALSE(fs::exists(dir_ / "x.png"));
+  const std::string txt =
+      run_command(cli + " result " + id + " --csv -o " + (dir_ / "x.txt").string(), &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(txt.find(".txt is not CSV output; use .csv"), std::string::npos) << txt;
 
   // Exit codes scripts rely on.
   run_command(cli + " get job-999", &code);

@@ -18,6 +18,7 @@
 #include "client/flow_output.h"
 #include "client/output_file.h"
 #include "client/rpc_client.h"
+#include "client/spec_arg.h"
 #include "client/watch_printer.h"
 #include "io/xdmf.h"
 #include "jobs/spec_json.h"
@@ -359,7 +360,10 @@ int main(int argc, char** argv) {
   auto* submit = app.add_subcommand("submit", "submit a job from flags or from a JSON spec");
   std::string spec_file, request_id, name;
   bool submit_watch = false, print_json = false;
-  submit->add_option("--spec", spec_file, "job spec as JSON (protobuf JSON mapping of cellflow.v1.JobSpec)");
+  submit->add_option(
+      "--spec", spec_file,
+      "job spec as JSON (protobuf JSON mapping of cellflow.v1.JobSpec): a file, - for stdin, or "
+      "the JSON itself ('{...}')");
   submit->add_option("--request-id", request_id, "idempotency key: the same id twice gives the same job");
   submit->add_option("--name", name, "a name for the job");
   submit->add_flag("--watch", submit_watch, "follow the job until it ends; exit with its state's code");
@@ -474,17 +478,15 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "cellflow: give either --spec or a scene, not both\n");
         return ExitCode::kExitUsage;
       }
-      std::ifstream in(spec_file);
-      if (!in) {
-        std::fprintf(stderr, "cellflow: cannot read %s\n", spec_file.c_str());
+      const client::SpecText text = client::read_spec_arg(spec_file, std::cin);
+      if (!text.error.empty()) {
+        std::fprintf(stderr, "cellflow: %s\n", text.error.c_str());
         return ExitCode::kExitUsage;
       }
-      std::stringstream text;
-      text << in.rdbuf();
       // The parser of the server and cellflow-run: the same fields, the same errors.
-      StatusOr<v1::JobSpec> parsed = jobs::job_spec_from_json(text.str());
+      StatusOr<v1::JobSpec> parsed = jobs::job_spec_from_json(text.text);
       if (!parsed.ok()) {
-        std::fprintf(stderr, "cellflow: %s: %s\n", spec_file.c_str(), parsed.status().message().c_str());
+        std::fprintf(stderr, "cellflow: %s: %s\n", text.source.c_str(), parsed.status().message().c_str());
         return ExitCode::kExitInvalidArgument;
       }
       *request.mutable_spec() = std::move(*parsed);
@@ -500,7 +502,9 @@ int main(int argc, char** argv) {
       spec->set_max_indentation_m(max_indentation_m);
       if (indentation->count("--load-points")) spec->set_load_points(indentation_points);
     } else {
-      std::fprintf(stderr, "cellflow: submit needs --spec FILE.json or a scene (compression, indentation)\n");
+      std::fprintf(
+          stderr,
+          "cellflow: submit needs --spec FILE.json|-|'{...}' or a scene (compression, indentation)\n");
       return ExitCode::kExitUsage;
     }
     if (!name.empty()) request.mutable_spec()->set_name(name);

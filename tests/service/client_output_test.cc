@@ -15,6 +15,7 @@
 #include "client/fit_output.h"
 #include "client/flow_output.h"
 #include "client/output_file.h"
+#include "client/spec_arg.h"
 #include "client/svg_plot.h"
 #include "client/watch_printer.h"
 #include "io/h5md.h"
@@ -230,6 +231,29 @@ TEST(OutputFile, DashIsStdoutAndTheExtensionMustBeTheFormat) {
   EXPECT_EQ(line, "a,b");
   fs::remove(path);
   EXPECT_FALSE(write_output("/nonexistent-dir/x.csv", "a"));
+}
+
+TEST(SpecArg, FileDashAndInlineJson) {
+  std::istringstream none;
+  const SpecText inline_spec = read_spec_arg("  {\"name\": \"x\"}", none);
+  EXPECT_EQ(inline_spec.error, "");
+  EXPECT_EQ(inline_spec.text, "  {\"name\": \"x\"}");
+  EXPECT_EQ(inline_spec.source, "inline spec");
+  std::istringstream in("{\"name\": \"from stdin\"}\n");
+  const SpecText piped = read_spec_arg("-", in);
+  EXPECT_EQ(piped.error, "");
+  EXPECT_EQ(piped.text, "{\"name\": \"from stdin\"}\n");
+  EXPECT_EQ(piped.source, "stdin");
+  std::istringstream empty;
+  EXPECT_NE(read_spec_arg("-", empty).error, "");
+  const fs::path path = fs::temp_directory_path() / ("cellflow_spec_" + std::to_string(::getpid()) + ".json");
+  std::ofstream(path) << "{}";
+  const SpecText file = read_spec_arg(path.string(), none);
+  EXPECT_EQ(file.error, "");
+  EXPECT_EQ(file.text, "{}");
+  EXPECT_EQ(file.source, path.string());
+  fs::remove(path);
+  EXPECT_EQ(read_spec_arg(path.string(), none).error, "cannot read " + path.string());
 }
 
 TEST(WatchPrinter, LinesAreStableKeyValueText) {

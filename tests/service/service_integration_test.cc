@@ -520,6 +520,22 @@ TEST_F(ServiceTest, CliSubmitsJsonSpecListsCancelsAndWatches) {
   EXPECT_EQ(job.spec().compression().cell().material().youngs_modulus_pa(), 800.0);
   EXPECT_EQ(job.spec().compression().load_points(), 3);
 
+  // --spec - reads stdin; --spec '{...}' is the JSON itself.
+  const std::string piped =
+      run_command("cat " + spec_path + " | " + cli + " submit --spec - --name piped", &code);
+  ASSERT_EQ(code, 0) << piped;
+  EXPECT_EQ(piped, "job-2\n");
+  EXPECT_EQ(get("job-2").spec().name(), "piped");
+  const std::string inline_json = run_command(
+      cli + R"( submit --spec '{"name": "inline", "compression": {"cell": {"radiusM": 5e-6, "material": )" +
+          R"({"youngsModulusPa": 800}, "targetVertexCount": 300}, "maxDeformation": 0.1, "loadPoints": 3}}')",
+      &code);
+  ASSERT_EQ(code, 0) << inline_json;
+  EXPECT_EQ(inline_json, "job-3\n");
+  EXPECT_EQ(get("job-3").spec().name(), "inline");
+  run_command(cli + R"( submit --spec '{"compression": {"cell": {"radiusM": "five"}}}')", &code);
+  EXPECT_EQ(code, 2);
+
   const std::string broken_path = (dir_ / "broken.json").string();
   std::ofstream(broken_path) << R"({"compression": {"cell": {"radiusM": "five"}}})";
   run_command(cli + " submit --spec " + broken_path, &code);

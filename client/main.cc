@@ -19,6 +19,7 @@
 #include "client/output_file.h"
 #include "client/rpc_client.h"
 #include "client/spec_arg.h"
+#include "client/version.h"
 #include "client/watch_printer.h"
 #include "io/xdmf.h"
 #include "jobs/spec_json.h"
@@ -339,6 +340,8 @@ int main(int argc, char** argv) {
 
   CLI::App app{"cellflow: submit, follow and fetch cell-mechanics simulations of a cellflow server."};
   app.footer(client::kExitCodeHelp);
+  app.set_version_flag("--version",
+                       std::string("cellflow ") + client::kVersion + " (commit " + client::kGitCommit + ")");
   app.require_subcommand(1);
   app.fallthrough();  // --server and --timeout-s also after the subcommand
   app.add_option("--server", options.server, "server address host:port (env CELLFLOW_SERVER)")

@@ -494,6 +494,12 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   EXPECT_EQ(code, 0);
   run_command(cli + " frobnicate", &code);
   EXPECT_EQ(code, 1);
+  // --version: the CMake project version and the configured commit (or "unknown").
+  const std::string version = run_command(std::string(CELLFLOW_CLI_EXE) + " --version", &code);
+  EXPECT_EQ(code, 0);
+  EXPECT_TRUE(std::regex_match(version,
+                               std::regex(R"(cellflow \d+\.\d+\.\d+ \(commit ([0-9a-f]{4,40}|unknown)\)\n)")))
+      << version;
   run_command(std::string(CELLFLOW_CLI_EXE) + " --server 127.0.0.1:1 --timeout-s 1 get job-1", &code);
   EXPECT_EQ(code, 6);
   const std::string again = run_command(cli +

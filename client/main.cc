@@ -19,6 +19,7 @@
 #include "client/output_file.h"
 #include "client/rpc_client.h"
 #include "client/spec_arg.h"
+#include "client/suggest.h"
 #include "client/version.h"
 #include "client/watch_printer.h"
 #include "io/xdmf.h"
@@ -332,6 +333,58 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
   return ExitCode::kExitOk;
 }
 
+// After a parse error: the first word of the command line that names no
+// subcommand or option where it stands, and the known one nearest it
+// ("unknown subcommand 'lsit'; did you mean 'list'?"); "" when every word is
+// known (the error is another one: a missing value, a bad number, ...).
+std::string did_you_mean(CLI::App& root, int argc, char** argv) {
+  CLI::App* current = &root;
+  for (int i = 1; i < argc; ++i) {
+    const std::string token = argv[i];
+    if (token == "--") break;
+    if (token.size() > 1 && token[0] == '-') {
+      const std::string name = token.substr(0, token.find('='));
+      const CLI::Option* option = nullptr;
+      // Options of the enclosing commands count too (fallthrough).
+      for (CLI::App* a = current; a != nullptr && option == nullptr; a = a->get_parent())
+        option = a->get_option_no_throw(name);
+      if (option == nullptr) {
+        std::vector<std::string> names;
+        for (CLI::App* a = current; a != nullptr; a = a->get_parent()) {
+          for (const CLI::Option* o : a->get_options()) {
+            for (const std::string& l : o->get_lnames()) names.push_back("--" + l);
+            for (const std::string& n : o->get_snames()) names.push_back("-" + n);
+          }
+        }
+        const std::string guess = client::closest_word(name, names);
+        const std::string where = current == &root ? "" : " of " + current->get_name();
+        return "unknown option '" + name + "'" + where +
+               (guess.empty() ? "" : "; did you mean '" + guess + "'?");
+      }
+      if (token.find('=') == std::string::npos && option->get_items_expected_max() > 0) ++i;  // its value
+      continue;
+    }
+    const auto subcommands = current->get_subcommands([&](CLI::App* s) { return s->check_name(token); });
+    if (!subcommands.empty()) {
+      current = subcommands.front();
+      continue;
+    }
+    const auto all = current->get_subcommands([](CLI::App*) { return true; });
+    const bool positionals =
+        !current->get_options([](const CLI::Option* o) { return o->get_positional(); }).empty();
+    if (!all.empty() && !positionals) {
+      std::vector<std::string> names;
+      for (const CLI::App* s : all) names.push_back(s->get_name());
+      const std::string guess = client::closest_word(token, names);
+      std::string known;
+      for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+      return "unknown subcommand '" + token + "'" + (current == &root ? "" : " of " + current->get_name()) +
+             (guess.empty() ? "; the subcommands are " + known : "; did you mean '" + guess + "'?");
+    }
+  }
+  return "";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -452,6 +505,12 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() != 0) {  // not --help or --version
+      if (const std::string hint = did_you_mean(app, argc, argv); !hint.empty()) {
+        std::fprintf(stderr, "cellflow: %s\nRun with --help for more information.\n", hint.c_str());
+        return ExitCode::kExitUsage;
+      }
+    }
     const int code = app.exit(e);
     return code == 0 ? ExitCode::kExitOk : ExitCode::kExitUsage;
   }

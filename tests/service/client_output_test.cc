@@ -16,6 +16,7 @@
 #include "client/flow_output.h"
 #include "client/output_file.h"
 #include "client/spec_arg.h"
+#include "client/suggest.h"
 #include "client/svg_plot.h"
 #include "client/watch_printer.h"
 #include "io/h5md.h"
@@ -254,6 +255,28 @@ TEST(SpecArg, FileDashAndInlineJson) {
   EXPECT_EQ(file.source, path.string());
   fs::remove(path);
   EXPECT_EQ(read_spec_arg(path.string(), none).error, "cannot read " + path.string());
+}
+
+TEST(Suggest, NearestKnownWordWithinAFewEdits) {
+  EXPECT_EQ(edit_distance("list", "list"), 0u);
+  EXPECT_EQ(edit_distance("lsit", "list"), 1u);  // a swap is one edit
+  EXPECT_EQ(edit_distance("", "abc"), 3u);
+  EXPECT_EQ(edit_distance("kitten", "sitting"), 3u);
+  const std::vector<std::string> commands = {"submit", "watch",  "get",  "list", "cancel",
+                                             "delete", "result", "plot", "fit"};
+  EXPECT_EQ(closest_word("lsit", commands), "list");
+  EXPECT_EQ(closest_word("resutl", commands), "result");
+  EXPECT_EQ(closest_word("sumbit", commands), "submit");
+  EXPECT_EQ(closest_word("plto", commands), "plot");
+  EXPECT_EQ(closest_word("frobnicate", commands), "");
+  EXPECT_EQ(closest_word("list", commands), "");        // not mistyped
+  EXPECT_EQ(closest_word("canc", commands), "cancel");  // the prefix of one
+  const std::vector<std::string> flags = {"--state", "--page-size", "--json", "--server", "--radius-m"};
+  EXPECT_EQ(closest_word("--stat", flags), "--state");
+  EXPECT_EQ(closest_word("--jsn", flags), "--json");
+  EXPECT_EQ(closest_word("--sever", flags), "--server");
+  EXPECT_EQ(closest_word("--radius", flags), "--radius-m");
+  EXPECT_EQ(closest_word("--verbose", flags), "");
 }
 
 TEST(WatchPrinter, LinesAreStableKeyValueText) {

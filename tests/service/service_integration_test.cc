@@ -492,8 +492,21 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   EXPECT_EQ(code, 2);
   run_command(cli + " watch " + id, &code);
   EXPECT_EQ(code, 0);
-  run_command(cli + " frobnicate", &code);
+  const std::string unknown = run_command(cli + " frobnicate", &code);
   EXPECT_EQ(code, 1);
+  EXPECT_NE(unknown.find("unknown subcommand 'frobnicate'; the subcommands are submit, watch"),
+            std::string::npos)
+      << unknown;
+  // A mistyped subcommand or flag is named with the nearest known one.
+  const std::string lsit = run_command(cli + " lsit", &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(lsit.find("unknown subcommand 'lsit'; did you mean 'list'?"), std::string::npos) << lsit;
+  const std::string stat = run_command(cli + " list --stat QUEUED", &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(stat.find("unknown option '--stat' of list; did you mean '--state'?"), std::string::npos) << stat;
+  const std::string compresion = run_command(cli + " submit compresion --radius-m 5e-6", &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(compresion.find("did you mean 'compression'?"), std::string::npos) << compresion;
   // --version: the CMake project version and the configured commit (or "unknown").
   const std::string version = run_command(std::string(CELLFLOW_CLI_EXE) + " --version", &code);
   EXPECT_EQ(code, 0);

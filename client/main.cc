@@ -465,6 +465,9 @@ int main(int argc, char** argv) {
   list->add_option("--state", state_name, "only jobs in this state")
       ->check(CLI::IsMember({"QUEUED", "RUNNING", "SUCCEEDED", "FAILED", "CANCELLED"}, CLI::ignore_case));
   list->add_option("--page-size", page_size, "jobs per request");
+  bool list_json = false;
+  list->add_flag("--json", list_json,
+                 "print the jobs as one JSON array (protobuf JSON mapping of cellflow.v1.Job)");
 
   auto* cancel = app.add_subcommand("cancel", "cancel a queued or running job");
   cancel->add_option("job", job_id, "job id")->required();
@@ -620,13 +623,28 @@ int main(int argc, char** argv) {
       request.set_state(state);
     }
     request.set_page_size(page_size);
+    // Every page fetched before anything is printed: an error leaves no half list.
+    std::vector<v1::Job> jobs;
     do {
       v1::ListJobsResponse response;
       const grpc::Status status = client.list(request, &response);
       if (!status.ok()) return report_error(status, "list");
-      for (const auto& job : response.jobs()) print_job(job);
+      for (const auto& job : response.jobs()) jobs.push_back(job);
       request.set_page_token(response.next_page_token());
     } while (!request.page_token().empty());
+    if (list_json) {
+      std::string array = "[";
+      for (std::size_t i = 0; i < jobs.size(); ++i) {
+        std::string job = to_json(jobs[i]);
+        while (!job.empty() && job.back() == '\n') job.pop_back();
+        array += (i == 0 ? "\n" : ",\n") + job;
+      }
+      array += jobs.empty() ? "]" : "\n]";
+      std::printf("%s\n", array.c_str());
+      return ExitCode::kExitOk;
+    }
+    std::printf("ID  STATE  SCENE  ATTEMPT  DONE  NAME  REASON\n");
+    for (const auto& job : jobs) print_job(job);
     return ExitCode::kExitOk;
   }
 

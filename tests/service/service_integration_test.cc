@@ -1,6 +1,7 @@
 // The service end to end on loopback: a real cellflow-server, real
 // cellflow-worker processes (spawned by the server or separately) and a real
 // SQLite file in a temporary directory.
+#include <google/protobuf/util/json_util.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <hdf5.h>
 
@@ -563,6 +564,20 @@ TEST_F(ServiceTest, CliSubmitsJsonSpecListsCancelsAndWatches) {
   const std::string listed = run_command(cli + " list --state queued", &code);
   EXPECT_EQ(code, 0);
   EXPECT_NE(listed.find("job-1  QUEUED  compression"), std::string::npos) << listed;
+  EXPECT_EQ(listed.rfind("ID  STATE  SCENE  ATTEMPT  DONE  NAME  REASON\n", 0), 0u) << listed;
+  // list --json: one JSON array of jobs in the protobuf JSON mapping.
+  const std::string listed_json = run_command(cli + " list --json", &code);
+  EXPECT_EQ(code, 0);
+  ASSERT_EQ(listed_json.rfind("[", 0), 0u) << listed_json;
+  v1::ListJobsResponse parsed_list;
+  ASSERT_TRUE(
+      google::protobuf::util::JsonStringToMessage("{\"jobs\": " + listed_json + "}", &parsed_list).ok())
+      << listed_json;
+  ASSERT_EQ(parsed_list.jobs_size(), 3) << listed_json;
+  EXPECT_EQ(parsed_list.jobs(0).id(), "job-1");
+  EXPECT_EQ(parsed_list.jobs(0).spec().name(), "from json");
+  EXPECT_EQ(parsed_list.jobs(2).spec().name(), "inline");
+  EXPECT_EQ(run_command(cli + " list --json --state running", &code), "[]\n");
   const std::string cancelled = run_command(cli + " cancel job-1", &code);
   EXPECT_EQ(code, 0);
   EXPECT_NE(cancelled.find("CANCELLED"), std::string::npos) << cancelled;

@@ -385,6 +385,56 @@ std::string did_you_mean(CLI::App& root, int argc, char** argv) {
   return "";
 }
 
+// `cellflow completion bash`: a completion function that walks the words
+// typed so far through the subcommands and offers the subcommands and flags
+// of the innermost one (with the global flags, which work after it too).
+void add_completion_cases(const CLI::App& app, const std::string& path, const std::string& global,
+                          std::string& walk, std::string& offer) {
+  std::string words;
+  const auto subcommands = app.get_subcommands([](const CLI::App*) { return true; });
+  for (const CLI::App* sub : subcommands) words += sub->get_name() + " ";
+  for (const CLI::Option* option : app.get_options()) {
+    for (const std::string& l : option->get_lnames()) words += "--" + l + " ";
+    for (const std::string& n : option->get_snames()) words += "-" + n + " ";
+  }
+  if (!path.empty()) words += global;
+  while (!words.empty() && words.back() == ' ') words.pop_back();
+  offer += "    \"" + path + "\") words=\"" + words + "\" ;;\n";
+  for (const CLI::App* sub : subcommands) {
+    const std::string sub_path = path + " " + sub->get_name();
+    walk += "      \"" + sub_path + "\") path=\"$path $w\" ;;\n";
+    add_completion_cases(*sub, sub_path, global, walk, offer);
+  }
+}
+
+std::string bash_completion(const CLI::App& app) {
+  std::string global;
+  for (const CLI::Option* option : app.get_options()) {
+    // --help is each command's own, --version the top level's only.
+    if (option->get_lnames() == std::vector<std::string>{"help"} ||
+        option->get_lnames() == std::vector<std::string>{"version"})
+      continue;
+    for (const std::string& l : option->get_lnames()) global += "--" + l + " ";
+  }
+  std::string walk, offer;
+  add_completion_cases(app, "", global, walk, offer);
+  return "# bash completion for cellflow: source <(cellflow completion bash)\n"
+         "_cellflow() {\n"
+         "  local cur=\"${COMP_WORDS[COMP_CWORD]}\" path=\"\" w i words=\"\"\n"
+         "  for ((i = 1; i < COMP_CWORD; i++)); do\n"
+         "    w=\"${COMP_WORDS[i]}\"\n"
+         "    case \"$path $w\" in\n" +
+         walk +
+         "    esac\n"
+         "  done\n"
+         "  case \"$path\" in\n" +
+         offer +
+         "  esac\n"
+         "  COMPREPLY=($(compgen -W \"$words\" -- \"$cur\"))\n"
+         "}\n"
+         "complete -o default -F _cellflow cellflow\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -505,6 +555,13 @@ int main(int argc, char** argv) {
       "here and sent as data; the server's worker fits them with the compression or indentation scene");
   fit_flags.add(fit_cmd);
 
+  std::string completion_shell;
+  auto* completion =
+      app.add_subcommand("completion", "print a shell completion script: source <(cellflow completion bash)");
+  completion->add_option("shell", completion_shell, "the shell (bash)")
+      ->required()
+      ->check(CLI::IsMember({"bash"}));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -516,6 +573,11 @@ int main(int argc, char** argv) {
     }
     const int code = app.exit(e);
     return code == 0 ? ExitCode::kExitOk : ExitCode::kExitUsage;
+  }
+
+  if (completion->parsed()) {
+    std::printf("%s", bash_completion(app).c_str());
+    return ExitCode::kExitOk;
   }
 
   // An output name whose extension is not the format written is refused before anything is fetched.

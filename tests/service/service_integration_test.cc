@@ -508,6 +508,29 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   const std::string compresion = run_command(cli + " submit compresion --radius-m 5e-6", &code);
   EXPECT_EQ(code, 1);
   EXPECT_NE(compresion.find("did you mean 'compression'?"), std::string::npos) << compresion;
+  // completion bash: a script whose function completes subcommands and their flags.
+  const std::string script_path = (dir_ / "cellflow.bash").string();
+  run_command(std::string(CELLFLOW_CLI_EXE) + " completion bash > " + script_path, &code);
+  ASSERT_EQ(code, 0);
+  auto complete = [&](const std::string& words) {
+    int rc = 0;
+    const std::string out = run_command("bash -c 'source " + script_path + "; COMP_WORDS=(" + words +
+                                            "); COMP_CWORD=$((${#COMP_WORDS[@]} - 1)); _cellflow; "
+                                            "echo \"${COMPREPLY[*]}\"'",
+                                        &rc);
+    EXPECT_EQ(rc, 0) << out;
+    return out;
+  };
+  EXPECT_EQ(complete("cellflow li"), "list\n");
+  EXPECT_EQ(complete("cellflow --server x:1 res"), "result\n");
+  EXPECT_EQ(complete("cellflow submit compression --ra"), "--radius-m\n");
+  EXPECT_EQ(complete("cellflow plot job-1 --ag"), "--against\n");
+  EXPECT_EQ(complete("cellflow list --st"), "--state\n");
+  const std::string list_flags = complete("cellflow list --");
+  EXPECT_NE(list_flags.find("--json"), std::string::npos) << list_flags;
+  EXPECT_NE(list_flags.find("--server"), std::string::npos) << list_flags;  // global flags work after it too
+  EXPECT_EQ(list_flags.find("--version"), std::string::npos) << list_flags;
+
   // --version: the CMake project version and the configured commit (or "unknown").
   const std::string version = run_command(std::string(CELLFLOW_CLI_EXE) + " --version", &code);
   EXPECT_EQ(code, 0);

@@ -130,14 +130,19 @@ std::string curve_svg(const Curve& curve, const std::string& title) {
   const int ix = curve.column("deformation");
   const int iforce = curve.column("force_n");
   const int ihertz = curve.column("hertz_force_n");
-  const PlotFrame frame;
-  const double left = frame.left, top = frame.top, plot_w = frame.plot_w(), plot_h = frame.plot_h();
-
-  double x_max = 0.0, f_max = 0.0;
+  // Axes from 0 (or below, for negative data) to past the data's maximum.
+  double x_min = 0.0, x_max = 0.0, f_min = 0.0, f_max = 0.0;
   for (const auto& row : curve.rows) {
-    if (ix >= 0) x_max = std::max(x_max, row[ix]);
-    if (iforce >= 0) f_max = std::max(f_max, row[iforce]);
-    if (ihertz >= 0) f_max = std::max(f_max, row[ihertz]);
+    if (ix >= 0 && std::isfinite(row[ix])) {
+      x_min = std::min(x_min, row[ix]);
+      x_max = std::max(x_max, row[ix]);
+    }
+    for (int column : {iforce, ihertz}) {
+      if (column >= 0 && std::isfinite(row[column])) {
+        f_min = std::min(f_min, row[column]);
+        f_max = std::max(f_max, row[column]);
+      }
+    }
   }
   // SI prefix for the force axis: the data's maximum lands in [1, 1000).
   struct Prefix {
@@ -150,11 +155,9 @@ std::string curve_svg(const Curve& curve, const std::string& title) {
   for (const Prefix& p : prefixes) {
     if (f_max >= p.scale) unit = p;
   }
-  const std::vector<double> xt = nice_ticks(0.0, x_max > 0 ? x_max : 1.0);
-  const std::vector<double> yt = nice_ticks(0.0, f_max > 0 ? f_max / unit.scale : 1.0);
-  const double x_hi = xt.back(), y_hi = yt.back();
-  auto px = [&](double x) { return left + plot_w * x / x_hi; };
-  auto py = [&](double f) { return top + plot_h * (1.0 - f / unit.scale / y_hi); };
+  const PlotAxis xa = nice_axis(x_min, x_max > x_min ? x_max : x_min + 1.0);
+  const PlotAxis ya =
+      nice_axis(f_min / unit.scale, f_max > f_min ? f_max / unit.scale : f_min / unit.scale + 1.0);
 
   PlotSeries simulation;
   simulation.color = "#1f77b4";
@@ -164,11 +167,14 @@ std::string curve_svg(const Curve& curve, const std::string& title) {
   hertz.color = "#d62728";
   hertz.dash = "7,5";
   hertz.label = "Hertz";
+  const PlotFrame frame = frame_with_legend({simulation, hertz});
+  auto px = [&](double x) { return frame.x_of(xa, x); };
+  auto py = [&](double f) { return frame.y_of(ya, f / unit.scale); };
 
   std::string svg = svg_open(frame, title);
   // The y ticks are in the prefixed unit, py takes newtons.
   svg += svg_axes(
-      frame, xt, yt, px, [&](double t) { return py(t * unit.scale); }, "deformation \u03b4 / 2R",
+      frame, xa.ticks, ya.ticks, px, [&](double t) { return py(t * unit.scale); }, "deformation \u03b4 / 2R",
       "force (" + std::string(unit.name) + ")");
 
   // Every point, even a single one, is drawn: Hertz under the simulation.
@@ -186,11 +192,8 @@ std::string curve_svg(const Curve& curve, const std::string& title) {
              "\" r=\"3\" fill=\"#1f77b4\"/>\n";
     }
   }
-  // Legend, top left inside the frame (the curves rise to the right).
-  const double lx = left + 16, ly = top + 16;
-  svg += "<rect x=\"" + fixed(lx - 8, 1) + "\" y=\"" + fixed(ly - 12, 1) +
-         "\" width=\"200\" height=\"48\" fill=\"white\" stroke=\"#999999\"/>\n";
-  svg += svg_legend_entries(lx, ly, {simulation, hertz});
+  // Legend right of the plotting area, off the data.
+  svg += svg_legend(frame, {simulation, hertz});
   svg += "</svg>\n";
   return svg;
 }

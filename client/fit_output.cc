@@ -166,14 +166,13 @@ std::string fit_curves_csv(const std::vector<FitCurveSeries>& curves) {
 }
 
 std::string fit_svg(const std::vector<FitCurveSeries>& curves, const std::string& title) {
-  const PlotFrame frame;
-  double x_lo = 0.0, x_hi = 0.0, f_max = 0.0;
+  double x_lo = 0.0, x_hi = 0.0, f_min = 0.0, f_max = 0.0;
   for (const auto& s : curves) {
     for (std::size_t i = 0; i < s.deformation.size(); ++i) {
       x_lo = std::min(x_lo, s.deformation[i]);
       x_hi = std::max(x_hi, s.deformation[i]);
       for (double f : {s.force_n[i], s.model_force_n[i]}) {
-        if (std::isfinite(f)) f_max = std::max(f_max, f);
+        if (std::isfinite(f)) f_min = std::min(f_min, f), f_max = std::max(f_max, f);
       }
     }
   }
@@ -187,21 +186,32 @@ std::string fit_svg(const std::vector<FitCurveSeries>& curves, const std::string
   for (const Prefix& p : prefixes) {
     if (f_max >= p.scale) unit = p;
   }
-  const std::vector<double> xt = nice_ticks(x_lo, x_hi > x_lo ? x_hi : x_lo + 1.0);
-  const std::vector<double> yt = nice_ticks(0.0, f_max > 0 ? f_max / unit.scale : 1.0);
-  const double x0 = xt.front(), x1 = xt.back(), y1 = yt.back();
-  auto px = [&](double x) { return frame.left + frame.plot_w() * (x - x0) / (x1 - x0); };
-  auto py = [&](double f) {
-    const double y = std::clamp(f / unit.scale / y1, -0.02, 1.02);
-    return frame.top + frame.plot_h() * (1.0 - y);
-  };
-  std::string svg = svg_open(frame, title);
-  svg += svg_axes(
-      frame, xt, yt, px, [&](double t) { return py(t * unit.scale); }, "deformation \u03b4 / 2R",
-      "force (" + std::string(unit.name) + ")");
+  const PlotAxis xa = nice_axis(x_lo, x_hi > x_lo ? x_hi : x_lo + 1.0);
+  const PlotAxis ya =
+      nice_axis(f_min / unit.scale, f_max > f_min ? f_max / unit.scale : f_min / unit.scale + 1.0);
   const char* colors[] = {"#1f77b4", "#2ca02c", "#9467bd", "#8c564b",
                           "#e377c2", "#17becf", "#bcbd22", "#7f7f7f"};
+  // The legend first: the frame makes room for it right of the plotting area.
   std::vector<PlotSeries> legend;
+  PlotSeries hertz;
+  hertz.color = "#d62728";
+  hertz.dash = "7,5";
+  hertz.label = "Hertz";
+  for (std::size_t c = 0; c < curves.size(); ++c) {
+    PlotSeries model;
+    model.color = colors[c % 8];
+    model.label = curves[c].name + ": data, model";
+    model.markers = true;
+    legend.push_back(model);
+  }
+  if (!curves.empty()) legend.push_back(hertz);
+  const PlotFrame frame = frame_with_legend(legend);
+  auto px = [&](double x) { return frame.x_of(xa, x); };
+  auto py = [&](double f) { return frame.y_of(ya, f / unit.scale); };
+  std::string svg = svg_open(frame, title);
+  svg += svg_axes(
+      frame, xa.ticks, ya.ticks, px, [&](double t) { return py(t * unit.scale); }, "deformation \u03b4 / 2R",
+      "force (" + std::string(unit.name) + ")");
   for (std::size_t c = 0; c < curves.size(); ++c) {
     const FitCurveSeries& s = curves[c];
     const std::string color = colors[c % 8];
@@ -216,23 +226,10 @@ std::string fit_svg(const std::vector<FitCurveSeries>& curves, const std::string
       svg += "<circle cx=\"" + fixed(px(s.deformation[i]), 2) + "\" cy=\"" + fixed(py(s.force_n[i]), 2) +
              "\" r=\"2\" fill=\"none\" stroke=\"" + color + "\"/>\n";
     }
-    PlotSeries model;
-    model.color = color;
-    model.label = s.name + ": data, model";
-    model.markers = true;
-    PlotSeries hertz;
-    hertz.color = "#d62728";
-    hertz.dash = "7,5";
-    hertz.label = "Hertz";
     svg += polyline(s.hertz_force_n, hertz);
-    svg += polyline(s.model_force_n, model);
-    legend.push_back(model);
-    if (c + 1 == curves.size()) legend.push_back(hertz);
+    svg += polyline(s.model_force_n, legend[c]);
   }
-  const double lx = frame.left + 16, ly = frame.top + 16;
-  svg += "<rect x=\"" + fixed(lx - 8, 1) + "\" y=\"" + fixed(ly - 12, 1) + "\" width=\"260\" height=\"" +
-         fixed(22.0 * legend.size() + 4, 1) + "\" fill=\"white\" stroke=\"#999999\"/>\n";
-  svg += svg_legend_entries(lx, ly, legend);
+  svg += svg_legend(frame, legend);
   svg += "</svg>\n";
   return svg;
 }

@@ -38,23 +38,21 @@ constexpr Column kColumns[] = {
 // A line plot with both axes from 0, nice ticks, a grid, labels and a legend.
 std::string plot_svg(const std::string& title, const std::string& x_label, const std::string& y_label,
                      const std::vector<PlotSeries>& series, double x_hint, double y_hint) {
-  const PlotFrame frame;
-  const double left = frame.left, top = frame.top, plot_w = frame.plot_w(), plot_h = frame.plot_h();
-  double x_max = x_hint, y_max = y_hint;
+  const PlotFrame frame = frame_with_legend(series);
+  double x_min = 0.0, x_max = x_hint, y_min = 0.0, y_max = y_hint;
   for (const PlotSeries& s : series) {
     for (const auto& [x, y] : s.points) {
-      if (std::isfinite(x)) x_max = std::max(x_max, x);
-      if (std::isfinite(y)) y_max = std::max(y_max, y);
+      if (std::isfinite(x)) x_min = std::min(x_min, x), x_max = std::max(x_max, x);
+      if (std::isfinite(y)) y_min = std::min(y_min, y), y_max = std::max(y_max, y);
     }
   }
-  const std::vector<double> xt = nice_ticks(0.0, x_max > 0 ? x_max : 1.0);
-  const std::vector<double> yt = nice_ticks(0.0, y_max > 0 ? y_max : 1.0);
-  const double x_hi = xt.back(), y_hi = yt.back();
-  auto px = [&](double x) { return left + plot_w * std::clamp(x / x_hi, 0.0, 1.0); };
-  auto py = [&](double y) { return top + plot_h * (1.0 - std::clamp(y / y_hi, 0.0, 1.0)); };
+  const PlotAxis xa = nice_axis(x_min, x_max > x_min ? x_max : x_min + 1.0);
+  const PlotAxis ya = nice_axis(y_min, y_max > y_min ? y_max : y_min + 1.0);
+  auto px = [&](double x) { return frame.x_of(xa, x); };
+  auto py = [&](double y) { return frame.y_of(ya, y); };
 
   std::string svg = svg_open(frame, title);
-  svg += svg_axes(frame, xt, yt, px, py, x_label, y_label);
+  svg += svg_axes(frame, xa.ticks, ya.ticks, px, py, x_label, y_label);
 
   for (const PlotSeries& s : series) {
     if (s.line && s.points.size() > 1) {
@@ -73,11 +71,8 @@ std::string plot_svg(const std::string& title, const std::string& x_label, const
       }
     }
   }
-  // Legend, top left inside the frame (the data rise to the right).
-  const double lx = left + 16, ly = top + 16;
-  svg += "<rect x=\"" + fixed(lx - 8, 1) + "\" y=\"" + fixed(ly - 12, 1) + "\" width=\"290\" height=\"" +
-         fixed(22.0 * static_cast<double>(series.size()) + 4, 1) + "\" fill=\"white\" stroke=\"#999999\"/>\n";
-  svg += svg_legend_entries(lx, ly, series);
+  // Legend right of the plotting area, off the data.
+  svg += svg_legend(frame, series);
   svg += "</svg>\n";
   return svg;
 }

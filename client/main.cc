@@ -16,7 +16,11 @@
 #include "client/fit_input.h"
 #include "client/fit_output.h"
 #include "client/flow_output.h"
+#include "client/output_file.h"
 #include "client/rpc_client.h"
+#include "client/spec_arg.h"
+#include "client/suggest.h"
+#include "client/version.h"
 #include "client/watch_printer.h"
 #include "io/xdmf.h"
 #include "jobs/spec_json.h"
@@ -329,6 +333,108 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
   return ExitCode::kExitOk;
 }
 
+// After a parse error: the first word of the command line that names no
+// subcommand or option where it stands, and the known one nearest it
+// ("unknown subcommand 'lsit'; did you mean 'list'?"); "" when every word is
+// known (the error is another one: a missing value, a bad number, ...).
+std::string did_you_mean(CLI::App& root, int argc, char** argv) {
+  CLI::App* current = &root;
+  for (int i = 1; i < argc; ++i) {
+    const std::string token = argv[i];
+    if (token == "--") break;
+    if (token.size() > 1 && token[0] == '-') {
+      const std::string name = token.substr(0, token.find('='));
+      const CLI::Option* option = nullptr;
+      // Options of the enclosing commands count too (fallthrough).
+      for (CLI::App* a = current; a != nullptr && option == nullptr; a = a->get_parent())
+        option = a->get_option_no_throw(name);
+      if (option == nullptr) {
+        std::vector<std::string> names;
+        for (CLI::App* a = current; a != nullptr; a = a->get_parent()) {
+          for (const CLI::Option* o : a->get_options()) {
+            for (const std::string& l : o->get_lnames()) names.push_back("--" + l);
+            for (const std::string& n : o->get_snames()) names.push_back("-" + n);
+          }
+        }
+        const std::string guess = client::closest_word(name, names);
+        const std::string where = current == &root ? "" : " of " + current->get_name();
+        return "unknown option '" + name + "'" + where +
+               (guess.empty() ? "" : "; did you mean '" + guess + "'?");
+      }
+      if (token.find('=') == std::string::npos && option->get_items_expected_max() > 0) ++i;  // its value
+      continue;
+    }
+    const auto subcommands = current->get_subcommands([&](CLI::App* s) { return s->check_name(token); });
+    if (!subcommands.empty()) {
+      current = subcommands.front();
+      continue;
+    }
+    const auto all = current->get_subcommands([](CLI::App*) { return true; });
+    const bool positionals =
+        !current->get_options([](const CLI::Option* o) { return o->get_positional(); }).empty();
+    if (!all.empty() && !positionals) {
+      std::vector<std::string> names;
+      for (const CLI::App* s : all) names.push_back(s->get_name());
+      const std::string guess = client::closest_word(token, names);
+      std::string known;
+      for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+      return "unknown subcommand '" + token + "'" + (current == &root ? "" : " of " + current->get_name()) +
+             (guess.empty() ? "; the subcommands are " + known : "; did you mean '" + guess + "'?");
+    }
+  }
+  return "";
+}
+
+// `cellflow completion bash`: a completion function that walks the words
+// typed so far through the subcommands and offers the subcommands and flags
+// of the innermost one (with the global flags, which work after it too).
+void add_completion_cases(const CLI::App& app, const std::string& path, const std::string& global,
+                          std::string& walk, std::string& offer) {
+  std::string words;
+  const auto subcommands = app.get_subcommands([](const CLI::App*) { return true; });
+  for (const CLI::App* sub : subcommands) words += sub->get_name() + " ";
+  for (const CLI::Option* option : app.get_options()) {
+    for (const std::string& l : option->get_lnames()) words += "--" + l + " ";
+    for (const std::string& n : option->get_snames()) words += "-" + n + " ";
+  }
+  if (!path.empty()) words += global;
+  while (!words.empty() && words.back() == ' ') words.pop_back();
+  offer += "    \"" + path + "\") words=\"" + words + "\" ;;\n";
+  for (const CLI::App* sub : subcommands) {
+    const std::string sub_path = path + " " + sub->get_name();
+    walk += "      \"" + sub_path + "\") path=\"$path $w\" ;;\n";
+    add_completion_cases(*sub, sub_path, global, walk, offer);
+  }
+}
+
+std::string bash_completion(const CLI::App& app) {
+  std::string global;
+  for (const CLI::Option* option : app.get_options()) {
+    // --help is each command's own, --version the top level's only.
+    if (option->get_lnames() == std::vector<std::string>{"help"} ||
+        option->get_lnames() == std::vector<std::string>{"version"})
+      continue;
+    for (const std::string& l : option->get_lnames()) global += "--" + l + " ";
+  }
+  std::string walk, offer;
+  add_completion_cases(app, "", global, walk, offer);
+  return "# bash completion for cellflow: source <(cellflow completion bash)\n"
+         "_cellflow() {\n"
+         "  local cur=\"${COMP_WORDS[COMP_CWORD]}\" path=\"\" w i words=\"\"\n"
+         "  for ((i = 1; i < COMP_CWORD; i++)); do\n"
+         "    w=\"${COMP_WORDS[i]}\"\n"
+         "    case \"$path $w\" in\n" +
+         walk +
+         "    esac\n"
+         "  done\n"
+         "  case \"$path\" in\n" +
+         offer +
+         "  esac\n"
+         "  COMPREPLY=($(compgen -W \"$words\" -- \"$cur\"))\n"
+         "}\n"
+         "complete -o default -F _cellflow cellflow\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -337,6 +443,8 @@ int main(int argc, char** argv) {
 
   CLI::App app{"cellflow: submit, follow and fetch cell-mechanics simulations of a cellflow server."};
   app.footer(client::kExitCodeHelp);
+  app.set_version_flag("--version",
+                       std::string("cellflow ") + client::kVersion + " (commit " + client::kGitCommit + ")");
   app.require_subcommand(1);
   app.fallthrough();  // --server and --timeout-s also after the subcommand
   app.add_option("--server", options.server, "server address host:port (env CELLFLOW_SERVER)")
@@ -358,7 +466,10 @@ int main(int argc, char** argv) {
   auto* submit = app.add_subcommand("submit", "submit a job from flags or from a JSON spec");
   std::string spec_file, request_id, name;
   bool submit_watch = false, print_json = false;
-  submit->add_option("--spec", spec_file, "job spec as JSON (protobuf JSON mapping of cellflow.v1.JobSpec)");
+  submit->add_option(
+      "--spec", spec_file,
+      "job spec as JSON (protobuf JSON mapping of cellflow.v1.JobSpec): a file, - for stdin, or "
+      "the JSON itself ('{...}')");
   submit->add_option("--request-id", request_id, "idempotency key: the same id twice gives the same job");
   submit->add_option("--name", name, "a name for the job");
   submit->add_flag("--watch", submit_watch, "follow the job until it ends; exit with its state's code");
@@ -404,6 +515,9 @@ int main(int argc, char** argv) {
   list->add_option("--state", state_name, "only jobs in this state")
       ->check(CLI::IsMember({"QUEUED", "RUNNING", "SUCCEEDED", "FAILED", "CANCELLED"}, CLI::ignore_case));
   list->add_option("--page-size", page_size, "jobs per request");
+  bool list_json = false;
+  list->add_flag("--json", list_json,
+                 "print the jobs as one JSON array (protobuf JSON mapping of cellflow.v1.Job)");
 
   auto* cancel = app.add_subcommand("cancel", "cancel a queued or running job");
   cancel->add_option("job", job_id, "job id")->required();
@@ -415,7 +529,8 @@ int main(int argc, char** argv) {
   auto* result =
       app.add_subcommand("result", "fetch a job's result: the HDF5 file (+ XDMF) or the curve as CSV");
   result->add_option("job", job_id, "job id")->required();
-  result->add_option("-o,--output", output, "output file (.h5; with --csv: .csv, default stdout)");
+  result->add_option("-o,--output", output,
+                     "output file (.h5; with --csv: .csv, default stdout); - for stdout");
   result->add_flag("--csv", csv,
                    "the force-deformation curve (compression, indentation) or the deformation time series "
                    "D(t) (shear flow) as CSV");
@@ -428,7 +543,7 @@ int main(int argc, char** argv) {
       "against strain (shear flow); with --against capillary-number the steady D of several shear-flow "
       "jobs against Ca beside Roscoe's theory");
   plot->add_option("jobs", plot_jobs, "job id(s)")->required();
-  plot->add_option("-o,--output", output, "SVG file")->required();
+  plot->add_option("-o,--output", output, "SVG file (.svg), - for stdout")->required();
   plot->add_option("--against", against, "steady D of the given shear-flow jobs against this quantity")
       ->check(CLI::IsMember({"capillary-number"}));
 
@@ -440,12 +555,42 @@ int main(int argc, char** argv) {
       "here and sent as data; the server's worker fits them with the compression or indentation scene");
   fit_flags.add(fit_cmd);
 
+  std::string completion_shell;
+  auto* completion =
+      app.add_subcommand("completion", "print a shell completion script: source <(cellflow completion bash)");
+  completion->add_option("shell", completion_shell, "the shell (bash)")
+      ->required()
+      ->check(CLI::IsMember({"bash"}));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() != 0) {  // not --help or --version
+      if (const std::string hint = did_you_mean(app, argc, argv); !hint.empty()) {
+        std::fprintf(stderr, "cellflow: %s\nRun with --help for more information.\n", hint.c_str());
+        return ExitCode::kExitUsage;
+      }
+    }
     const int code = app.exit(e);
     return code == 0 ? ExitCode::kExitOk : ExitCode::kExitUsage;
   }
+
+  if (completion->parsed()) {
+    std::printf("%s", bash_completion(app).c_str());
+    return ExitCode::kExitOk;
+  }
+
+  // An output name whose extension is not the format written is refused before anything is fetched.
+  if (result->parsed() || plot->parsed()) {
+    const std::string error = plot->parsed() ? client::check_output_name(output, "SVG", {".svg"})
+                              : csv          ? client::check_output_name(output, "CSV", {".csv"})
+                                             : client::check_output_name(output, "HDF5", {".h5", ".hdf5"});
+    if (!error.empty()) {
+      std::fprintf(stderr, "cellflow: %s\n", error.c_str());
+      return ExitCode::kExitUsage;
+    }
+  }
+  const bool to_stdout = client::is_stdout_name(output);
 
   if (const std::string error = client::load_credentials(credentials, &options); !error.empty()) {
     std::fprintf(stderr, "cellflow: %s\n", error.c_str());
@@ -460,17 +605,15 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "cellflow: give either --spec or a scene, not both\n");
         return ExitCode::kExitUsage;
       }
-      std::ifstream in(spec_file);
-      if (!in) {
-        std::fprintf(stderr, "cellflow: cannot read %s\n", spec_file.c_str());
+      const client::SpecText text = client::read_spec_arg(spec_file, std::cin);
+      if (!text.error.empty()) {
+        std::fprintf(stderr, "cellflow: %s\n", text.error.c_str());
         return ExitCode::kExitUsage;
       }
-      std::stringstream text;
-      text << in.rdbuf();
       // The parser of the server and cellflow-run: the same fields, the same errors.
-      StatusOr<v1::JobSpec> parsed = jobs::job_spec_from_json(text.str());
+      StatusOr<v1::JobSpec> parsed = jobs::job_spec_from_json(text.text);
       if (!parsed.ok()) {
-        std::fprintf(stderr, "cellflow: %s: %s\n", spec_file.c_str(), parsed.status().message().c_str());
+        std::fprintf(stderr, "cellflow: %s: %s\n", text.source.c_str(), parsed.status().message().c_str());
         return ExitCode::kExitInvalidArgument;
       }
       *request.mutable_spec() = std::move(*parsed);
@@ -486,7 +629,9 @@ int main(int argc, char** argv) {
       spec->set_max_indentation_m(max_indentation_m);
       if (indentation->count("--load-points")) spec->set_load_points(indentation_points);
     } else {
-      std::fprintf(stderr, "cellflow: submit needs --spec FILE.json or a scene (compression, indentation)\n");
+      std::fprintf(
+          stderr,
+          "cellflow: submit needs --spec FILE.json|-|'{...}' or a scene (compression, indentation)\n");
       return ExitCode::kExitUsage;
     }
     if (!name.empty()) request.mutable_spec()->set_name(name);
@@ -540,13 +685,28 @@ int main(int argc, char** argv) {
       request.set_state(state);
     }
     request.set_page_size(page_size);
+    // Every page fetched before anything is printed: an error leaves no half list.
+    std::vector<v1::Job> jobs;
     do {
       v1::ListJobsResponse response;
       const grpc::Status status = client.list(request, &response);
       if (!status.ok()) return report_error(status, "list");
-      for (const auto& job : response.jobs()) print_job(job);
+      for (const auto& job : response.jobs()) jobs.push_back(job);
       request.set_page_token(response.next_page_token());
     } while (!request.page_token().empty());
+    if (list_json) {
+      std::string array = "[";
+      for (std::size_t i = 0; i < jobs.size(); ++i) {
+        std::string job = to_json(jobs[i]);
+        while (!job.empty() && job.back() == '\n') job.pop_back();
+        array += (i == 0 ? "\n" : ",\n") + job;
+      }
+      array += jobs.empty() ? "]" : "\n]";
+      std::printf("%s\n", array.c_str());
+      return ExitCode::kExitOk;
+    }
+    std::printf("ID  STATE  SCENE  ATTEMPT  DONE  NAME  REASON\n");
+    for (const auto& job : jobs) print_job(job);
     return ExitCode::kExitOk;
   }
 
@@ -591,17 +751,16 @@ int main(int argc, char** argv) {
     }
     const std::string text = client::steady_deformation_svg(
         points, "steady deformation against capillary number (" + std::to_string(points.size()) + " jobs)");
-    std::ofstream out(output, std::ios::binary | std::ios::trunc);
-    out << text;
-    if (!out) {
+    if (!client::write_output(output, text)) {
       std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
       return ExitCode::kExitUsage;
     }
+    // The summary on stdout beside a file, on stderr when stdout is the SVG.
     for (const auto& p : points) {
-      std::printf("%s  Ca %.6g  steady D %.6g  (%s)\n", p.label.c_str(), p.capillary_number,
-                  p.steady_taylor_deformation, p.stop.c_str());
+      std::fprintf(to_stdout ? stderr : stdout, "%s  Ca %.6g  steady D %.6g  (%s)\n", p.label.c_str(),
+                   p.capillary_number, p.steady_taylor_deformation, p.stop.c_str());
     }
-    std::printf("%s\n", output.c_str());
+    if (!to_stdout) std::printf("%s\n", output.c_str());
     return ExitCode::kExitOk;
   }
 
@@ -613,7 +772,7 @@ int main(int argc, char** argv) {
     }
     TemporaryResult temporary;
     std::string h5 = output;
-    if (!want_file) {
+    if (!want_file || to_stdout) {
       temporary.path =
           (fs::temp_directory_path() / ("cellflow-" + job_id + "-" + std::to_string(::getpid()) + ".h5"))
               .string();
@@ -621,6 +780,16 @@ int main(int argc, char** argv) {
     }
     const grpc::Status status = client.download(job_id, h5);
     if (!status.ok()) return report_error(status, "result " + job_id);
+    if (want_file && to_stdout) {  // the HDF5 bytes themselves (no XDMF beside them)
+      std::ifstream in(h5, std::ios::binary);
+      std::ostringstream bytes;
+      bytes << in.rdbuf();
+      if (!in || !client::write_output(output, bytes.str())) {
+        std::fprintf(stderr, "cellflow: cannot copy the result of %s to stdout\n", job_id.c_str());
+        return ExitCode::kExitUsage;
+      }
+      return ExitCode::kExitOk;
+    }
     if (want_file) {
       const std::string xdmf = (fs::path(h5).replace_extension(".xdmf")).string();
       if (Status s = io::write_xdmf(h5, xdmf); s.ok()) {
@@ -640,17 +809,11 @@ int main(int argc, char** argv) {
       const std::string text = plot->parsed()
                                    ? client::fit_svg(*curves, job_id + " (fit: data, model, Hertz)")
                                    : client::fit_curves_csv(*curves);
-      if (output.empty()) {
-        std::fwrite(text.data(), 1, text.size(), stdout);
-        return ExitCode::kExitOk;
-      }
-      std::ofstream out(output, std::ios::binary | std::ios::trunc);
-      out << text;
-      if (!out) {
+      if (!client::write_output(output, text)) {
         std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
         return ExitCode::kExitUsage;
       }
-      std::printf("%s\n", output.c_str());
+      if (!output.empty() && !to_stdout) std::printf("%s\n", output.c_str());
       return ExitCode::kExitOk;
     }
     const bool flow = client::is_flow_result(h5);
@@ -677,17 +840,11 @@ int main(int argc, char** argv) {
     } else {
       text = client::curve_csv(*curve);
     }
-    if (output.empty()) {
-      std::fwrite(text.data(), 1, text.size(), stdout);
-      return ExitCode::kExitOk;
-    }
-    std::ofstream out(output, std::ios::binary | std::ios::trunc);
-    out << text;
-    if (!out) {
+    if (!client::write_output(output, text)) {
       std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
       return ExitCode::kExitUsage;
     }
-    std::printf("%s\n", output.c_str());
+    if (!output.empty() && !to_stdout) std::printf("%s\n", output.c_str());
     return ExitCode::kExitOk;
   }
   return ExitCode::kExitUsage;

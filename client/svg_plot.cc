@@ -34,20 +34,34 @@ std::string escape_xml(const std::string& text) {
 }
 
 std::vector<double> nice_ticks(double lo, double hi, int target_count) {
-  if (!(hi > lo)) hi = lo + 1.0;
+  if (!std::isfinite(lo)) lo = 0.0;
+  if (!std::isfinite(hi) || !(hi > lo)) hi = lo + 1.0;
   const double raw = (hi - lo) / std::max(target_count - 1, 1);
   const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
   double step = magnitude;
   for (double m : {1.0, 2.0, 5.0, 10.0}) {
     step = m * magnitude;
-    if (step >= raw) break;
+    if (step >= raw * (1.0 - 1e-12)) break;
   }
+  // Whole multiples of the step, from the one at or below lo to the one at or
+  // above hi (a relative slack so that 0.15 / 0.05 stays 3, not 3.0000000004).
+  const double first = std::floor(lo / step + 1e-9);
+  const double last = std::ceil(hi / step - 1e-9);
   std::vector<double> ticks;
-  for (double t = std::floor(lo / step) * step; t <= hi + 0.5 * step; t += step) {
+  for (double k = first; k <= last + 0.5; k += 1.0) {
+    const double t = k * step;
     ticks.push_back(std::fabs(t) < 1e-12 * step ? 0.0 : t);
-    if (t >= hi - 1e-9 * step) break;
   }
   return ticks;
+}
+
+PlotAxis nice_axis(double data_lo, double data_hi, int target_count) {
+  PlotAxis axis;
+  axis.ticks = nice_ticks(data_lo, data_hi, target_count);
+  const double span = axis.ticks.back() - axis.ticks.front();
+  axis.lo = axis.ticks.front() - 0.03 * span;
+  axis.hi = axis.ticks.back() + 0.03 * span;
+  return axis;
 }
 
 std::string svg_open(const PlotFrame& frame, const std::string& title) {
@@ -99,6 +113,39 @@ std::string svg_axes(const PlotFrame& frame, const std::vector<double>& x_ticks,
 std::string svg_stroke(const PlotSeries& series) {
   return "stroke=\"" + series.color + "\" stroke-width=\"2\"" +
          (series.dash.empty() ? std::string() : " stroke-dasharray=\"" + series.dash + "\"");
+}
+
+namespace {
+
+// The legend box's width: line sample, gap and label (about 7.5 px a
+// character at font size 13; UTF-8 continuation bytes not counted).
+double legend_box_width(const std::vector<PlotSeries>& series) {
+  std::size_t chars = 0;
+  for (const PlotSeries& s : series) {
+    std::size_t n = 0;
+    for (unsigned char c : s.label) n += (c & 0xC0) != 0x80;
+    chars = std::max(chars, n);
+  }
+  return 8.0 + 40.0 + 7.5 * static_cast<double>(chars) + 8.0;
+}
+
+}  // namespace
+
+PlotFrame frame_with_legend(const std::vector<PlotSeries>& series) {
+  PlotFrame frame;
+  const double extra = legend_box_width(series) + 16.0;
+  frame.right += extra;
+  frame.width += extra;
+  return frame;
+}
+
+std::string svg_legend(const PlotFrame& frame, const std::vector<PlotSeries>& series) {
+  const double box_x = frame.left + frame.plot_w() + 16.0, box_y = frame.top;
+  const double lx = box_x + 8.0, ly = box_y + 16.0;
+  return "<rect x=\"" + fixed(box_x, 1) + "\" y=\"" + fixed(box_y, 1) + "\" width=\"" +
+         fixed(legend_box_width(series), 1) + "\" height=\"" +
+         fixed(22.0 * static_cast<double>(series.size()) + 8.0, 1) +
+         "\" fill=\"white\" stroke=\"#999999\"/>\n" + svg_legend_entries(lx, ly, series);
 }
 
 std::string svg_legend_entries(double lx, double ly, const std::vector<PlotSeries>& series) {

@@ -19,14 +19,34 @@ int decimals_for(double step);
 // `text` with &, <, > and " as XML entities.
 std::string escape_xml(const std::string& text);
 
-// "Nice" tick positions (1, 2, 5 x 10^k steps) covering [lo, hi].
+// "Nice" tick positions (1, 2, 5 x 10^k steps) covering [lo, hi]: the first
+// tick is <= lo and the last >= hi.
 std::vector<double> nice_ticks(double lo, double hi, int target_count = 6);
+
+// One axis of a plot: nice ticks covering the data, and the drawn range
+// [lo, hi], the ticks' span padded by 3% on either side so that no data point
+// lies on the frame.
+struct PlotAxis {
+  std::vector<double> ticks;
+  double lo = 0.0, hi = 1.0;
+};
+
+// The axis for data in [data_lo, data_hi] (an empty or reversed range becomes
+// [data_lo, data_lo + 1]).
+PlotAxis nice_axis(double data_lo, double data_hi, int target_count = 6);
 
 // The plot's page and the margins around the plotting area, in SVG pixels.
 struct PlotFrame {
   double width = 720, height = 480, left = 90, right = 30, top = 50, bottom = 70;
   double plot_w() const { return width - left - right; }
   double plot_h() const { return height - top - bottom; }
+  // Value `v` on `axis` to its SVG x (left to right) or y (bottom to top).
+  double x_of(const PlotAxis& axis, double v) const {
+    return left + plot_w() * (v - axis.lo) / (axis.hi - axis.lo);
+  }
+  double y_of(const PlotAxis& axis, double v) const {
+    return top + plot_h() * (1.0 - (v - axis.lo) / (axis.hi - axis.lo));
+  }
 };
 
 // A tick value (in axis units) to its SVG pixel coordinate.
@@ -54,6 +74,15 @@ struct PlotSeries {
 
 // The stroke attributes of a series' line: color, width 2, dashes if any.
 std::string svg_stroke(const PlotSeries& series);
+
+// The default frame widened on the right by room for the legend of
+// `series`, so that the legend sits outside the plotting area and covers no
+// data; the plotting area keeps its size.
+PlotFrame frame_with_legend(const std::vector<PlotSeries>& series);
+
+// The legend of `series` in its box, right of the plotting area of `frame`
+// (made by frame_with_legend), top aligned with it.
+std::string svg_legend(const PlotFrame& frame, const std::vector<PlotSeries>& series);
 
 // One legend row per series from (lx, ly) down, 22 px apart: its line
 // sample, marker and label (the box around them is the caller's).

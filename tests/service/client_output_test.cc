@@ -8,9 +8,16 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 
 #include "client/curve_output.h"
 #include "client/exit_codes.h"
+#include "client/fit_output.h"
+#include "client/flow_output.h"
+#include "client/output_file.h"
+#include "client/spec_arg.h"
+#include "client/suggest.h"
+#include "client/svg_plot.h"
 #include "client/watch_printer.h"
 #include "io/h5md.h"
 
@@ -97,6 +104,179 @@ TEST(CurveOutput, ReadsTheCurveOfAResultFile) {
   EXPECT_EQ(curve->rows[2][2], 2e-9);
   EXPECT_EQ(curve->rows[2][5], 6.0);
   fs::remove(path);
+}
+
+// Every data point of an SVG plot (circle centres, polyline vertices) lies
+// strictly inside the plotting area (the black frame rectangle), and none
+// lies inside the legend box (the grey rectangle).
+struct Box {
+  double x = 0, y = 0, w = 0, h = 0;
+  bool contains(double px, double py) const { return px >= x && px <= x + w && py >= y && py <= y + h; }
+  bool strictly_contains(double px, double py) const { return px > x && px < x + w && py > y && py < y + h; }
+};
+
+Box rect_with(const std::string& svg, const std::string& stroke) {
+  const std::regex rect(
+      "<rect x=\"([-0-9.]+)\" y=\"([-0-9.]+)\" width=\"([-0-9.]+)\" height=\"([-0-9.]+)\"[^>]*stroke=\"" +
+      stroke + "\"");
+  std::smatch m;
+  EXPECT_TRUE(std::regex_search(svg, m, rect)) << stroke;
+  if (m.empty()) return {};
+  return {std::stod(m[1]), std::stod(m[2]), std::stod(m[3]), std::stod(m[4])};
+}
+
+std::vector<std::pair<double, double>> data_points(const std::string& svg) {
+  std::vector<std::pair<double, double>> points;
+  const std::regex circle("<circle cx=\"([-0-9.]+)\" cy=\"([-0-9.]+)\"");
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), circle); it != std::sregex_iterator(); ++it)
+    points.emplace_back(std::stod((*it)[1]), std::stod((*it)[2]));
+  const std::regex polyline("points=\"([^\"]*)\"");
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), polyline); it != std::sregex_iterator(); ++it) {
+    std::istringstream vertices((*it)[1].str());
+    std::string vertex;
+    while (vertices >> vertex) {
+      const auto comma = vertex.find(',');
+      points.emplace_back(std::stod(vertex.substr(0, comma)), std::stod(vertex.substr(comma + 1)));
+    }
+  }
+  return points;
+}
+
+void expect_data_inside_and_off_the_legend(const std::string& svg, std::size_t min_points) {
+  const Box plot = rect_with(svg, "black");
+  const Box legend = rect_with(svg, "#999999");
+  const auto points = data_points(svg);
+  // The legend's own samples are circles too: drop those inside the legend box,
+  // then require that no data point was among them (all data lies in the plot).
+  std::size_t data = 0;
+  for (const auto& [x, y] : points) {
+    if (legend.contains(x, y)) {
+      EXPECT_FALSE(plot.contains(x, y)) << "legend box over data at " << x << "," << y;
+      continue;
+    }
+    ++data;
+    EXPECT_TRUE(plot.strictly_contains(x, y)) << "point on or outside the frame: " << x << "," << y;
+  }
+  EXPECT_GE(data, min_points);
+  // The legend box and the plotting area do not overlap at all.
+  EXPECT_TRUE(legend.x >= plot.x + plot.w || legend.x + legend.w <= plot.x || legend.y >= plot.y + plot.h ||
+              legend.y + legend.h <= plot.y);
+}
+
+TEST(SvgPlot, NiceTicksIncludeTheDataMaximum) {
+  // 0.89 is past 0.8 by less than half a 0.2 step: the last tick used to be 0.8.
+  for (double hi : {0.89, 0.96, 0.15, 1.0, 7.3, 123.0, 0.0299}) {
+    const auto ticks = nice_ticks(0.0, hi);
+    EXPECT_LE(ticks.front(), 0.0);
+    EXPECT_GE(ticks.back(), hi * (1 - 1e-12)) << hi;
+    EXPECT_LT(ticks.back() - (ticks[1] - ticks[0]), hi) << hi;  // no tick beyond the first one past hi
+  }
+  const auto negative = nice_ticks(-0.37, 2.2);
+  EXPECT_LE(negative.front(), -0.37);
+  EXPECT_GE(negative.back(), 2.2);
+}
+
+TEST(SvgPlot, CurvePointsLieInsideTheFrameAndOffTheLegend) {
+  Curve curve = make_curve();
+  // A maximum just past a tick (the clipping case), and a point at the origin.
+  curve.rows.push_back({5.0, 0.17, 2.0 * curve.rows.back()[2], curve.rows.back()[3]});
+  curve.rows.insert(curve.rows.begin(), {0.0, 0.0, 0.0, 0.0});
+  expect_data_inside_and_off_the_legend(curve_svg(curve, "c"), 2 * curve.rows.size());
+}
+
+TEST(SvgPlot, FlowPlotsLieInsideTheFrameAndOffTheLegend) {
+  std::vector<SteadyPoint> points = {
+      {"a", 0.05, 0.061, "steady"}, {"b", 0.3, 0.33, "steady"}, {"c", 0.89, 0.64, "max_strain"}};
+  expect_data_inside_and_off_the_legend(steady_deformation_svg(points, "steady"), 3);
+  Curve d;
+  d.columns = {"strain", "taylor_deformation"};
+  d.integer_columns = {false, false};
+  for (int i = 0; i <= 20; ++i) d.rows.push_back({0.481 * i, 0.33 * (1 - std::exp(-0.5 * i))});
+  expect_data_inside_and_off_the_legend(deformation_svg(d, 0.3, 0.33, "d"), 21);
+}
+
+TEST(SvgPlot, FitPointsLieInsideTheFrameAndOffTheLegend) {
+  FitCurveSeries s;
+  s.name = "cell-1";
+  for (int i = 0; i < 12; ++i) {
+    const double eps = 0.0123 * i - 0.01;
+    const double f = eps > 0 ? 2e-9 * std::pow(eps, 1.5) : -1e-12 * (i + 1);  // noise below zero
+    s.sample.push_back(i);
+    s.indentation_m.push_back(eps * 10e-6);
+    s.deformation.push_back(eps);
+    s.force_n.push_back(f * 1.05);
+    s.model_force_n.push_back(f);
+    s.hertz_force_n.push_back(f * 0.9);
+  }
+  expect_data_inside_and_off_the_legend(fit_svg({s}, "fit"), 12);
+}
+
+TEST(OutputFile, DashIsStdoutAndTheExtensionMustBeTheFormat) {
+  EXPECT_TRUE(is_stdout_name("-"));
+  EXPECT_FALSE(is_stdout_name("-.svg"));
+  EXPECT_EQ(check_output_name("-", "SVG", {".svg"}), "");
+  EXPECT_EQ(check_output_name("", "CSV", {".csv"}), "");
+  EXPECT_EQ(check_output_name("out/curve.svg", "SVG", {".svg"}), "");
+  EXPECT_EQ(check_output_name("CURVE.SVG", "SVG", {".svg"}), "");
+  EXPECT_EQ(check_output_name("r.hdf5", "HDF5", {".h5", ".hdf5"}), "");
+  EXPECT_EQ(check_output_name("x.png", "SVG", {".svg"}),
+            "-o x.png: the extension .png is not SVG output; use .svg (or - for stdout)");
+  EXPECT_EQ(check_output_name("result", "HDF5", {".h5", ".hdf5"}),
+            "-o result: no extension; use .h5 or .hdf5 (or - for stdout)");
+  const fs::path path =
+      fs::temp_directory_path() / ("cellflow_output_" + std::to_string(::getpid()) + ".csv");
+  ASSERT_TRUE(write_output(path.string(), "a,b\n"));
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "a,b");
+  fs::remove(path);
+  EXPECT_FALSE(write_output("/nonexistent-dir/x.csv", "a"));
+}
+
+TEST(SpecArg, FileDashAndInlineJson) {
+  std::istringstream none;
+  const SpecText inline_spec = read_spec_arg("  {\"name\": \"x\"}", none);
+  EXPECT_EQ(inline_spec.error, "");
+  EXPECT_EQ(inline_spec.text, "  {\"name\": \"x\"}");
+  EXPECT_EQ(inline_spec.source, "inline spec");
+  std::istringstream in("{\"name\": \"from stdin\"}\n");
+  const SpecText piped = read_spec_arg("-", in);
+  EXPECT_EQ(piped.error, "");
+  EXPECT_EQ(piped.text, "{\"name\": \"from stdin\"}\n");
+  EXPECT_EQ(piped.source, "stdin");
+  std::istringstream empty;
+  EXPECT_NE(read_spec_arg("-", empty).error, "");
+  const fs::path path = fs::temp_directory_path() / ("cellflow_spec_" + std::to_string(::getpid()) + ".json");
+  std::ofstream(path) << "{}";
+  const SpecText file = read_spec_arg(path.string(), none);
+  EXPECT_EQ(file.error, "");
+  EXPECT_EQ(file.text, "{}");
+  EXPECT_EQ(file.source, path.string());
+  fs::remove(path);
+  EXPECT_EQ(read_spec_arg(path.string(), none).error, "cannot read " + path.string());
+}
+
+TEST(Suggest, NearestKnownWordWithinAFewEdits) {
+  EXPECT_EQ(edit_distance("list", "list"), 0u);
+  EXPECT_EQ(edit_distance("lsit", "list"), 1u);  // a swap is one edit
+  EXPECT_EQ(edit_distance("", "abc"), 3u);
+  EXPECT_EQ(edit_distance("kitten", "sitting"), 3u);
+  const std::vector<std::string> commands = {"submit", "watch",  "get",  "list", "cancel",
+                                             "delete", "result", "plot", "fit"};
+  EXPECT_EQ(closest_word("lsit", commands), "list");
+  EXPECT_EQ(closest_word("resutl", commands), "result");
+  EXPECT_EQ(closest_word("sumbit", commands), "submit");
+  EXPECT_EQ(closest_word("plto", commands), "plot");
+  EXPECT_EQ(closest_word("frobnicate", commands), "");
+  EXPECT_EQ(closest_word("list", commands), "");        // not mistyped
+  EXPECT_EQ(closest_word("canc", commands), "cancel");  // the prefix of one
+  const std::vector<std::string> flags = {"--state", "--page-size", "--json", "--server", "--radius-m"};
+  EXPECT_EQ(closest_word("--stat", flags), "--state");
+  EXPECT_EQ(closest_word("--jsn", flags), "--json");
+  EXPECT_EQ(closest_word("--sever", flags), "--server");
+  EXPECT_EQ(closest_word("--radius", flags), "--radius-m");
+  EXPECT_EQ(closest_word("--verbose", flags), "");
 }
 
 TEST(WatchPrinter, LinesAreStableKeyValueText) {

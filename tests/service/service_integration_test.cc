@@ -1,6 +1,7 @@
 // The service end to end on loopback: a real cellflow-server, real
 // cellflow-worker processes (spawned by the server or separately) and a real
 // SQLite file in a temporary directory.
+#include <google/protobuf/util/json_util.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <hdf5.h>
 
@@ -465,6 +466,24 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   ASSERT_EQ(code, 0);
   run_command(std::string(CELLFLOW_XMLLINT) + " --noout " + svg_path, &code);
   EXPECT_EQ(code, 0) << "the SVG is not well-formed XML";
+  // -o - is stdout, not a file named "-"; a wrong extension is refused naming both.
+  const std::string svg_stdout =
+      run_command("cd " + dir_.string() + " && " + cli + " plot " + id + " -o -", &code);
+  EXPECT_EQ(code, 0);
+  EXPECT_EQ(svg_stdout, read_text(svg_path));
+  EXPECT_FALSE(fs::exists(dir_ / "-"));
+  EXPECT_EQ(run_command(cli + " result " + id + " --csv -o -", &code), csv);
+  EXPECT_EQ(code, 0);
+  const std::string h5_stdout = run_command(cli + " result " + id + " -o - | cmp - " + h5, &code);
+  EXPECT_EQ(code, 0) << h5_stdout;
+  const std::string png = run_command(cli + " plot " + id + " -o " + (dir_ / "x.png").string(), &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(png.find(".png is not SVG output; use .svg"), std::string::npos) << png;
+  EXPECT_FALSE(fs::exists(dir_ / "x.png"));
+  const std::string txt =
+      run_command(cli + " result " + id + " --csv -o " + (dir_ / "x.txt").string(), &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(txt.find(".txt is not CSV output; use .csv"), std::string::npos) << txt;
 
   // Exit codes scripts rely on.
   run_command(cli + " get job-999", &code);
@@ -474,8 +493,50 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   EXPECT_EQ(code, 2);
   run_command(cli + " watch " + id, &code);
   EXPECT_EQ(code, 0);
-  run_command(cli + " frobnicate", &code);
+  const std::string unknown = run_command(cli + " frobnicate", &code);
   EXPECT_EQ(code, 1);
+  EXPECT_NE(unknown.find("unknown subcommand 'frobnicate'; the subcommands are submit, watch"),
+            std::string::npos)
+      << unknown;
+  // A mistyped subcommand or flag is named with the nearest known one.
+  const std::string lsit = run_command(cli + " lsit", &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(lsit.find("unknown subcommand 'lsit'; did you mean 'list'?"), std::string::npos) << lsit;
+  const std::string stat = run_command(cli + " list --stat QUEUED", &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(stat.find("unknown option '--stat' of list; did you mean '--state'?"), std::string::npos) << stat;
+  const std::string compresion = run_command(cli + " submit compresion --radius-m 5e-6", &code);
+  EXPECT_EQ(code, 1);
+  EXPECT_NE(compresion.find("did you mean 'compression'?"), std::string::npos) << compresion;
+  // completion bash: a script whose function completes subcommands and their flags.
+  const std::string script_path = (dir_ / "cellflow.bash").string();
+  run_command(std::string(CELLFLOW_CLI_EXE) + " completion bash > " + script_path, &code);
+  ASSERT_EQ(code, 0);
+  auto complete = [&](const std::string& words) {
+    int rc = 0;
+    const std::string out = run_command("bash -c 'source " + script_path + "; COMP_WORDS=(" + words +
+                                            "); COMP_CWORD=$((${#COMP_WORDS[@]} - 1)); _cellflow; "
+                                            "echo \"${COMPREPLY[*]}\"'",
+                                        &rc);
+    EXPECT_EQ(rc, 0) << out;
+    return out;
+  };
+  EXPECT_EQ(complete("cellflow li"), "list\n");
+  EXPECT_EQ(complete("cellflow --server x:1 res"), "result\n");
+  EXPECT_EQ(complete("cellflow submit compression --ra"), "--radius-m\n");
+  EXPECT_EQ(complete("cellflow plot job-1 --ag"), "--against\n");
+  EXPECT_EQ(complete("cellflow list --st"), "--state\n");
+  const std::string list_flags = complete("cellflow list --");
+  EXPECT_NE(list_flags.find("--json"), std::string::npos) << list_flags;
+  EXPECT_NE(list_flags.find("--server"), std::string::npos) << list_flags;  // global flags work after it too
+  EXPECT_EQ(list_flags.find("--version"), std::string::npos) << list_flags;
+
+  // --version: the CMake project version and the configured commit (or "unknown").
+  const std::string version = run_command(std::string(CELLFLOW_CLI_EXE) + " --version", &code);
+  EXPECT_EQ(code, 0);
+  EXPECT_TRUE(std::regex_match(version,
+                               std::regex(R"(cellflow \d+\.\d+\.\d+ \(commit ([0-9a-f]{4,40}|unknown)\)\n)")))
+      << version;
   run_command(std::string(CELLFLOW_CLI_EXE) + " --server 127.0.0.1:1 --timeout-s 1 get job-1", &code);
   EXPECT_EQ(code, 6);
   const std::string again = run_command(cli +
@@ -502,6 +563,22 @@ TEST_F(ServiceTest, CliSubmitsJsonSpecListsCancelsAndWatches) {
   EXPECT_EQ(job.spec().compression().cell().material().youngs_modulus_pa(), 800.0);
   EXPECT_EQ(job.spec().compression().load_points(), 3);
 
+  // --spec - reads stdin; --spec '{...}' is the JSON itself.
+  const std::string piped =
+      run_command("cat " + spec_path + " | " + cli + " submit --spec - --name piped", &code);
+  ASSERT_EQ(code, 0) << piped;
+  EXPECT_EQ(piped, "job-2\n");
+  EXPECT_EQ(get("job-2").spec().name(), "piped");
+  const std::string inline_json = run_command(
+      cli + R"( submit --spec '{"name": "inline", "compression": {"cell": {"radiusM": 5e-6, "material": )" +
+          R"({"youngsModulusPa": 800}, "targetVertexCount": 300}, "maxDeformation": 0.1, "loadPoints": 3}}')",
+      &code);
+  ASSERT_EQ(code, 0) << inline_json;
+  EXPECT_EQ(inline_json, "job-3\n");
+  EXPECT_EQ(get("job-3").spec().name(), "inline");
+  run_command(cli + R"( submit --spec '{"compression": {"cell": {"radiusM": "five"}}}')", &code);
+  EXPECT_EQ(code, 2);
+
   const std::string broken_path = (dir_ / "broken.json").string();
   std::ofstream(broken_path) << R"({"compression": {"cell": {"radiusM": "five"}}})";
   run_command(cli + " submit --spec " + broken_path, &code);
@@ -510,6 +587,20 @@ TEST_F(ServiceTest, CliSubmitsJsonSpecListsCancelsAndWatches) {
   const std::string listed = run_command(cli + " list --state queued", &code);
   EXPECT_EQ(code, 0);
   EXPECT_NE(listed.find("job-1  QUEUED  compression"), std::string::npos) << listed;
+  EXPECT_EQ(listed.rfind("ID  STATE  SCENE  ATTEMPT  DONE  NAME  REASON\n", 0), 0u) << listed;
+  // list --json: one JSON array of jobs in the protobuf JSON mapping.
+  const std::string listed_json = run_command(cli + " list --json", &code);
+  EXPECT_EQ(code, 0);
+  ASSERT_EQ(listed_json.rfind("[", 0), 0u) << listed_json;
+  v1::ListJobsResponse parsed_list;
+  ASSERT_TRUE(
+      google::protobuf::util::JsonStringToMessage("{\"jobs\": " + listed_json + "}", &parsed_list).ok())
+      << listed_json;
+  ASSERT_EQ(parsed_list.jobs_size(), 3) << listed_json;
+  EXPECT_EQ(parsed_list.jobs(0).id(), "job-1");
+  EXPECT_EQ(parsed_list.jobs(0).spec().name(), "from json");
+  EXPECT_EQ(parsed_list.jobs(2).spec().name(), "inline");
+  EXPECT_EQ(run_command(cli + " list --json --state running", &code), "[]\n");
   const std::string cancelled = run_command(cli + " cancel job-1", &code);
   EXPECT_EQ(code, 0);
   EXPECT_NE(cancelled.find("CANCELLED"), std::string::npos) << cancelled;

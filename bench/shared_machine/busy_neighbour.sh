@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # A program of ours next to a busy core: the wall time of one cellflow-run
-# (default compression spec) with the machine idle and with another process
+# (default: the default compression spec, 3000 vertices, 40 points to 0.5) with the machine idle and with another process
 # spinning on one core, each the median of RUNS runs. OMP_WAIT_POLICY is
 # left unset on purpose: the program must wait passively by itself.
 #   bash bench/shared_machine/busy_neighbour.sh [build-dir] [spec] [runs]
 set -euo pipefail
 build=${1:-build}
-spec=${2:-examples/compression.json}
+spec=${2:-bench/shared_machine/default_compression.json}
 runs=${3:-3}
 unset OMP_WAIT_POLICY
 run_once() {

@@ -189,13 +189,27 @@ StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& 
   return setup;
 }
 
-solver::EquilibriumOptions solver_options(const QuasiStaticOptions& numerics, const cell::CellParams& cell) {
+// Threads that pay for a solve of this size when the caller asked for none in
+// particular (numerics.threads = 0). Measured with idle threads waiting
+// passively (2-core machine, 2026-12-01, cellflow-run -j N): 3000 vertices,
+// 40 points to 0.5, 1 thread 3.44 s against 2 threads 4.49 s; 12000
+// vertices, 6 points to 0.3, 6.90 s against 5.87 s. Below the crossover the
+// team's wake-ups cost more than the second core gives.
+constexpr std::size_t kMinVerticesForThreads = 6000;
+
+int solve_threads(int requested, std::size_t vertices) {
+  if (requested > 0) return requested;
+  return vertices < kMinVerticesForThreads ? 1 : 0;  // 0: the OpenMP default
+}
+
+solver::EquilibriumOptions solver_options(const QuasiStaticOptions& numerics, const cell::CellParams& cell,
+                                          std::size_t vertices) {
   solver::EquilibriumOptions o;
   o.residual_tolerance = numerics.residual_tolerance;
   o.max_newton_iterations = numerics.max_newton_iterations;
   // E R^2: the force scale of the cell (Hertz: F = (4/3) E* R^2 eps^1.5)
   o.force_scale_n = cell.material.youngs_modulus_pa * cell.radius_m * cell.radius_m;
-  o.threads = numerics.threads;
+  o.threads = solve_threads(numerics.threads, vertices);
   return o;
 }
 
@@ -209,7 +223,7 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
   QuasiStaticResult result;
   if (callbacks.on_mesh) callbacks.on_mesh(setup.mesh);
   solver::EquilibriumSolver solver(setup.body, setup.surface_vertices, setup.mesh.positions_m,
-                                   solver_options(numerics, cell));
+                                   solver_options(numerics, cell, setup.mesh.num_vertices()));
   solver::LoadPath path(solver, std::move(obstacles), setup.mesh.positions_m, 0.0);
   const double diameter = 2.0 * cell.radius_m;
   for (int i = 0; i < load_points; ++i) {

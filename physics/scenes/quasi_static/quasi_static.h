@@ -45,7 +45,10 @@ struct QuasiStaticOptions {
   // zero gap. Stiffness > 0; range in (0, 0.1 R].
   std::optional<double> contact_stiffness_n_per_m;
   std::optional<double> contact_range_m;
-  int threads = 0;  // OpenMP threads of forces, tangent and CG; 0 = OpenMP default; in [0, 1024]
+  // OpenMP threads of forces, tangent and CG, in [0, 1024]; 0: what pays for
+  // the size (one thread below 6000 vertices, else the OpenMP default; see
+  // quasi_static.cc for the measurement).
+  int threads = 0;
   // The volumetric term kappa/2 (J - 1)^2 of paper eq. (5): averaged over the
   // tets around each vertex (default; linear tets with their own J lock at
   // nu = 0.48 and converge slowly, see elastic_body.h) or per tet as in the paper.

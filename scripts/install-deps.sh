@@ -15,7 +15,6 @@ packages=(
   libcli11-dev libspdlog-dev nlohmann-json3-dev
   libxml2-utils
   libzip-dev
-  libssl-dev
 )
 
 SUDO=""

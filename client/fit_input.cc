@@ -80,6 +80,19 @@ StatusOr<FitInputCurve> read_fit_curve(const std::string& path, double radius_m,
     x.push_back(x_read[i]);
     f.push_back(seg->force_n[i]);
   }
+  if (options.contact_at_zero) {
+    FitInputCurve out;
+    out.file = path;
+    out.contact_estimate_m = 0.0;
+    out.curve.set_name(std::filesystem::path(path).filename().string());
+    out.curve.set_force_noise_n(0.0);
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      out.curve.add_indentation_m(x[k]);
+      out.curve.add_force_n(f[k]);
+      out.approach_sample.push_back(static_cast<int>(order[k]));
+    }
+    return out;
+  }
   // Negative forces (beyond the free cantilever's noise and 1 % of the
   // maximum) against the baseline of the free part: a sign or baseline
   // problem the contact estimate would only hide.

@@ -12,6 +12,13 @@
 // (the noise of both) is sorted and ties are dropped; a position channel the file gives
 // directly (tip position, indentation, or height without deflection) must
 // increase: else the error names the sample. Every error names the file.
+//
+// With FitInputOptions::contact_at_zero the curve starts at contact (a
+// finite-element reference, or data already processed): position 0 is the
+// contact point and the force has no offset, so there is no free part to fit
+// a baseline on. The curve is sent as it is: indentation = the position
+// column, force as read, contact estimate 0, force noise 0 (the fit's relative
+// floor); the fit still refines the contact within its contact window.
 #pragma once
 
 #include <optional>
@@ -26,6 +33,7 @@ namespace cellflow::client {
 struct FitInputOptions {
   std::optional<double> spring_constant_n_per_m;  // override the file's calibration
   std::optional<double> sensitivity_m_per_v;
+  bool contact_at_zero = false;  // skip baseline and contact estimation (see above)
 };
 
 struct FitInputCurve {

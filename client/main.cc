@@ -153,7 +153,7 @@ struct FitFlags {
   double spring_constant = 0, sensitivity = 0, library_max_deformation = 0, contact_window_radii = 0;
   int vertices = 0, load_points = 0;
   bool w_free = false, watch = false, json = false, no_per_curve = false, no_joint = false,
-       print_spec = false;
+       print_spec = false, contact_at_zero = false;
 
   void add(CLI::App* app) {
     app->add_option("files", files,
@@ -186,6 +186,10 @@ struct FitFlags {
                     "library numerics: last deformation of the curves (default 0.75)");
     app->add_option("--contact-window-radii", contact_window_radii,
                     "contact point searched within +-c R of the estimate (default 0.1)");
+    app->add_flag("--contact-at-zero", contact_at_zero,
+                  "the curves start at contact (a finite-element reference, processed data): position 0 "
+                  "is the contact point and the force has no offset; skip baseline and contact estimation "
+                  "(the fit still refines the contact within --contact-window-radii)");
     app->add_flag("--no-per-curve", no_per_curve, "joint fit only");
     app->add_flag("--no-joint", no_joint, "per-curve fits only");
     app->add_option("--request-id", request_id, "idempotency key");
@@ -262,6 +266,7 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
   client::FitInputOptions input_options;
   if (app->count("--spring-constant")) input_options.spring_constant_n_per_m = flags.spring_constant;
   if (app->count("--sensitivity")) input_options.sensitivity_m_per_v = flags.sensitivity;
+  input_options.contact_at_zero = flags.contact_at_zero;
   std::vector<client::FitInputCurve> inputs;
   client::FitReport report;
   for (const std::string& file : flags.files) {

@@ -116,10 +116,7 @@ int watch(client::Client& client, const std::string& job_id, std::int64_t after,
 // The server reads no file a spec names: a cell's mesh_file (from --mesh-file
 // or a JSON spec) is read here, uploaded, and replaced by its hash.
 int upload_mesh_file(client::Client& client, v1::JobSpec& spec) {
-  v1::CellSpec* cell = spec.has_compression()   ? spec.mutable_compression()->mutable_cell()
-                       : spec.has_indentation() ? spec.mutable_indentation()->mutable_cell()
-                       : spec.has_shear_flow()  ? spec.mutable_shear_flow()->mutable_cell()
-                                                : nullptr;
+  v1::CellSpec* cell = jobs::mutable_scene_cell(spec);  // whichever scene holds a cell
   if (cell == nullptr || cell->mesh_file().empty()) return ExitCode::kExitOk;
   std::ifstream in(cell->mesh_file(), std::ios::binary);
   std::ostringstream bytes;

@@ -33,22 +33,6 @@ const SceneEntry* find_scene(const v1::JobSpec& spec) {
   return nullptr;
 }
 
-v1::CellSpec* mutable_scene_cell(v1::JobSpec& spec, std::string* scene) {
-  const google::protobuf::OneofDescriptor* oneof = spec.GetDescriptor()->FindOneofByName("scene");
-  const google::protobuf::Reflection* reflection = spec.GetReflection();
-  const google::protobuf::FieldDescriptor* field =
-      oneof ? reflection->GetOneofFieldDescriptor(spec, oneof) : nullptr;
-  if (field == nullptr || field->type() != google::protobuf::FieldDescriptor::TYPE_MESSAGE) return nullptr;
-  google::protobuf::Message* message = reflection->MutableMessage(&spec, field);
-  const google::protobuf::FieldDescriptor* cell = message->GetDescriptor()->FindFieldByName("cell");
-  if (cell == nullptr || cell->message_type() != v1::CellSpec::descriptor() ||
-      !message->GetReflection()->HasField(*message, cell)) {
-    return nullptr;
-  }
-  if (scene != nullptr) *scene = field->name();
-  return static_cast<v1::CellSpec*>(message->GetReflection()->MutableMessage(message, cell));
-}
-
 StatusOr<std::unique_ptr<PreparedJob>> SceneRegistry::prepare(const v1::JobSpec& spec) const {
   const SceneEntry* entry = find_scene(spec);
   if (entry == nullptr) {

@@ -13,6 +13,7 @@
 
 #include "cellflow/v1/spec.pb.h"
 #include "jobs/scene.h"
+#include "jobs/spec_json.h"  // mutable_scene_cell
 #include "physics/core/status.h"
 
 namespace cellflow::jobs {
@@ -22,11 +23,6 @@ std::span<const SceneEntry> registered_scenes();
 
 // The entry of the scene `spec` names, or nullptr.
 const SceneEntry* find_scene(const v1::JobSpec& spec);
-
-// The cell of the spec's scene (the message field "cell" of the scene
-// oneof's set field, found through reflection), or nullptr when the scene or
-// its cell is unset; *scene (if not null) gets the scene's field name.
-v1::CellSpec* mutable_scene_cell(v1::JobSpec& spec, std::string* scene = nullptr);
 
 // A registry instance per process component (the server's job service, a
 // worker): it prepares jobs and counts how often it converted a spec, so a

@@ -29,4 +29,20 @@ std::string_view scene_name(const v1::JobSpec& spec) {
   return field ? std::string_view(field->name()) : std::string_view();
 }
 
+v1::CellSpec* mutable_scene_cell(v1::JobSpec& spec, std::string* scene) {
+  const google::protobuf::OneofDescriptor* oneof = spec.GetDescriptor()->FindOneofByName("scene");
+  const google::protobuf::Reflection* reflection = spec.GetReflection();
+  const google::protobuf::FieldDescriptor* field =
+      oneof ? reflection->GetOneofFieldDescriptor(spec, oneof) : nullptr;
+  if (field == nullptr || field->type() != google::protobuf::FieldDescriptor::TYPE_MESSAGE) return nullptr;
+  google::protobuf::Message* message = reflection->MutableMessage(&spec, field);
+  const google::protobuf::FieldDescriptor* cell = message->GetDescriptor()->FindFieldByName("cell");
+  if (cell == nullptr || cell->message_type() != v1::CellSpec::descriptor() ||
+      !message->GetReflection()->HasField(*message, cell)) {
+    return nullptr;
+  }
+  if (scene != nullptr) *scene = field->name();
+  return static_cast<v1::CellSpec*>(message->GetReflection()->MutableMessage(message, cell));
+}
+
 }  // namespace cellflow::jobs

@@ -19,4 +19,9 @@ std::string job_spec_to_json(const v1::JobSpec& spec);
 // read from the proto's oneof; empty when none is set.
 std::string_view scene_name(const v1::JobSpec& spec);
 
+// The cell of the spec's scene (the message field "cell" of the scene
+// oneof's set field, found through reflection), or nullptr when the scene or
+// its cell is unset; *scene (if not null) gets the scene's field name.
+v1::CellSpec* mutable_scene_cell(v1::JobSpec& spec, std::string* scene = nullptr);
+
 }  // namespace cellflow::jobs

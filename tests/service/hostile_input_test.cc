@@ -238,11 +238,16 @@ TEST_F(ServiceTest, WorkerRemovesItsScratchAndThoseOfDeadWorkers) {
   const pid_t dead = ::fork();
   if (dead == 0) ::_exit(0);
   ::waitpid(dead, nullptr, 0);
-  const fs::path stale = fs::temp_directory_path() / ("cellflow-worker-" + std::to_string(dead));
+  // A temporary folder of this test's own: workers of tests running beside
+  // it sweep the shared one too, and the one that comes first says so.
+  const fs::path tmp = dir_ / "tmp";
+  fs::create_directories(tmp);
+  const fs::path stale = tmp / ("cellflow-worker-" + std::to_string(dead));
   fs::create_directories(stale);
   std::ofstream(stale / "job-3.attempt-1.h5.tmp") << "left by a killed worker";
-  Process* worker = start_worker({"--idle-exit-s", "1"});
-  const fs::path own = fs::temp_directory_path() / ("cellflow-worker-" + std::to_string(worker->pid()));
+  Process* worker = start_worker({"--idle-exit-s", "1"},
+                                 {"CELLFLOW_WORKER_TOKEN=" + worker_token_, "TMPDIR=" + tmp.string()});
+  const fs::path own = tmp / ("cellflow-worker-" + std::to_string(worker->pid()));
   ASSERT_TRUE(worker->wait_for(20s));
   EXPECT_FALSE(fs::exists(stale));
   EXPECT_FALSE(fs::exists(own));

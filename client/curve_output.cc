@@ -144,17 +144,7 @@ std::string curve_svg(const Curve& curve, const std::string& title) {
       }
     }
   }
-  // SI prefix for the force axis: the data's maximum lands in [1, 1000).
-  struct Prefix {
-    double scale;
-    const char* name;
-  };
-  const Prefix prefixes[] = {{1e-15, "fN"},     {1e-12, "pN"}, {1e-9, "nN"},
-                             {1e-6, "\u00b5N"}, {1e-3, "mN"},  {1.0, "N"}};
-  Prefix unit = prefixes[2];
-  for (const Prefix& p : prefixes) {
-    if (f_max >= p.scale) unit = p;
-  }
+  const ForceUnit unit = force_unit(f_max);  // the largest force in [1, 1000) of the unit
   const PlotAxis xa = nice_axis(x_min, x_max > x_min ? x_max : x_min + 1.0);
   const PlotAxis ya =
       nice_axis(f_min / unit.scale, f_max > f_min ? f_max / unit.scale : f_min / unit.scale + 1.0);

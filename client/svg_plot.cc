@@ -167,4 +167,14 @@ std::string svg_legend_entries(double lx, double ly, const std::vector<PlotSerie
   return svg;
 }
 
+ForceUnit force_unit(double max_force_n) {
+  const ForceUnit units[] = {{1e-15, "fN"},     {1e-12, "pN"}, {1e-9, "nN"},
+                             {1e-6, "\u00b5N"}, {1e-3, "mN"},  {1.0, "N"}};
+  ForceUnit unit = units[2];
+  for (const ForceUnit& u : units) {
+    if (max_force_n >= u.scale) unit = u;
+  }
+  return unit;
+}
+
 }  // namespace cellflow::client

@@ -35,6 +35,14 @@ struct PlotAxis {
 // [data_lo, data_lo + 1]).
 PlotAxis nice_axis(double data_lo, double data_hi, int target_count = 6);
 
+// The SI prefix of a force axis: the largest force lands in [1, 1000) of it
+// (fN ... N; nN when every force is below 1 fN).
+struct ForceUnit {
+  double scale;      // newtons per unit
+  const char* name;  // "nN"
+};
+ForceUnit force_unit(double max_force_n);
+
 // The plot's page and the margins around the plotting area, in SVG pixels.
 struct PlotFrame {
   double width = 720, height = 480, left = 90, right = 30, top = 50, bottom = 70;

@@ -15,6 +15,12 @@ packages=(
   libcli11-dev libspdlog-dev nlohmann-json3-dev
   libxml2-utils
   libzip-dev
+  # The Python client (python/) and its tests: Debian's interpreter and modules,
+  # pip/venv/setuptools/wheel for `pip install ./python`, meshio and matplotlib
+  # for the mesh conversion and examples/python.
+  python3 python3-grpcio python3-protobuf python3-numpy python3-h5py
+  python3-pip python3-venv python3-setuptools python3-wheel
+  python3-meshio python3-matplotlib
 )
 
 SUDO=""

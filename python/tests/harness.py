@@ -110,3 +110,24 @@ class LocalService:
         # On stderr for ctest --output-on-failure (shown only when a test failed).
         sys.stderr.write("---- server log (end) ----\n" + self.log()[-6000:])
         shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def run_example(service, *args, timeout=120):
+    """examples/python/sweep_and_plot.py against the service (address and
+    token in the environment, as a user sets them); returns the finished process."""
+    import cellflow
+
+    env = dict(os.environ, CELLFLOW_SERVER=service.address, CELLFLOW_TOKEN=service.token,
+               PYTHONPATH=str(pathlib.Path(cellflow.__file__).resolve().parent.parent), MPLBACKEND="Agg")
+    return subprocess.run([sys.executable, str(CHECKOUT / "examples" / "python" / "sweep_and_plot.py"), *args],
+                          capture_output=True, text=True, env=env, timeout=timeout)
+
+
+def steady_values(stdout):
+    """{Ca: steady D} from the example's output lines "Ca 0.1: steady D 0.0123 ..."."""
+    out = {}
+    for line in stdout.splitlines():
+        if line.startswith("Ca ") and "steady D" in line:
+            ca, rest = line[3:].split(":", 1)
+            out[float(ca)] = float(rest.split()[2])
+    return out

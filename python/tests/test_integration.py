@@ -161,6 +161,17 @@ class ClientAgainstServer(unittest.TestCase):
         faces = len(stl.cells_dict["triangle"])
         self.assertEqual(len(np.unique(stl.cells_dict["triangle"])) - faces // 2, 2)
 
+    def test_example_sweep_and_plot_with_separate_jobs(self):
+        figure = self.folder / "sweep.png"
+        run = harness.run_example(SERVICE, "--quick", "--separate", "--ca", "0.1,0.2", "-o", str(figure))
+        self.assertEqual(run.returncode, 0, run.stdout + run.stderr)
+        self.assertEqual(figure.read_bytes()[:8], b"\x89PNG\r\n\x1a\n")
+        steady = harness.steady_values(run.stdout)
+        self.assertEqual(sorted(steady), [0.1, 0.2])
+        # A softer cell (larger Ca) deforms more.
+        self.assertGreater(steady[0.2], steady[0.1])
+        self.assertGreater(steady[0.1], 0.0)
+
     # -- jobs ----------------------------------------------------------------
 
     def test_get_and_list_with_paging(self):

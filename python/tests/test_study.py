@@ -43,6 +43,16 @@ class StudyFromPython(unittest.TestCase):
             np.testing.assert_allclose(soft["deformation"], stiff["deformation"], rtol=1e-12)
             np.testing.assert_allclose(stiff["force_n"] / soft["force_n"], 2.0, rtol=1e-3)
 
+            # The example script's study path: a capillary-number sweep, plotted.
+            figure = service.folder / "sweep.png"
+            run = harness.run_example(service, "--quick", "--ca", "0.1,0.2", "-o", str(figure))
+            self.assertEqual(run.returncode, 0, run.stdout + run.stderr)
+            self.assertIn("study", run.stdout)
+            self.assertEqual(figure.read_bytes()[:8], b"\x89PNG\r\n\x1a\n")
+            steady = harness.steady_values(run.stdout)
+            self.assertEqual(sorted(steady), [0.1, 0.2])
+            self.assertGreater(steady[0.2], steady[0.1])
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -1,7 +1,5 @@
 """The one exception the client raises for a refused or failed call."""
 
-import grpc
-
 
 class CellflowError(Exception):
     """A call the service refused or that could not reach it.
@@ -17,7 +15,8 @@ class CellflowError(Exception):
 
     @classmethod
     def from_rpc(cls, error, what):
-        code = error.code() if isinstance(error, grpc.Call) else None
-        details = error.details() if isinstance(error, grpc.Call) else str(error)
+        # A grpc.RpcError of a call is also a grpc.Call (code, details).
+        code = error.code() if callable(getattr(error, "code", None)) else None
+        details = error.details() if callable(getattr(error, "details", None)) else str(error)
         name = code.name if code is not None else "ERROR"
         return cls(f"{what}: {name}: {details}", code)

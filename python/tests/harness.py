@@ -69,12 +69,14 @@ def small_shear_flow(capillary_number=0.2, max_strain=2.0):
 class LocalService:
     """with LocalService(workers=2) as service: service.address, service.token, service.folder."""
 
-    def __init__(self, workers=1):
+    def __init__(self, workers=1, extra_args=(), folder=None):
         self.workers = workers
+        self.extra_args = list(extra_args)
+        self.given_folder = folder
         self.process = None
 
     def __enter__(self):
-        self.folder = pathlib.Path(tempfile.mkdtemp(prefix="cellflow_python_"))
+        self.folder = pathlib.Path(self.given_folder or tempfile.mkdtemp(prefix="cellflow_python_"))
         data = self.folder / "data"
         env = dict(os.environ, OMP_NUM_THREADS="1", OMP_WAIT_POLICY="passive", TMPDIR=str(self.folder))
         self.token = subprocess.run([SERVER_EXE, "token", "create", "--user", "python-test", "--data-dir", str(data)],
@@ -86,7 +88,7 @@ class LocalService:
                 [SERVER_EXE, "--listen", "127.0.0.1:0", "--port-file", str(port_file), "--worker-listen",
                  "127.0.0.1:0", "--worker-port-file", str(self.folder / "worker-port"), "--data-dir", str(data),
                  "--workers", str(self.workers), "--worker-path", WORKER_EXE, "--worker-arg=--threads=1",
-                 "--log-level", "info"],
+                 "--log-level", "info", *self.extra_args],
                 stdout=log, stderr=subprocess.STDOUT, env=env)
         deadline = time.monotonic() + 20
         while not (port_file.exists() and port_file.read_text().strip()):
@@ -131,3 +133,24 @@ def steady_values(stdout):
             ca, rest = line[3:].split(":", 1)
             out[float(ca)] = float(rest.split()[2])
     return out
+
+
+def make_certificates(folder):
+    """A CA, a server certificate for localhost and 127.0.0.1 signed by it, a
+    client certificate signed by it, and a second CA that signed nothing
+    (Debian's openssl; the commands of tests/service/auth_test.cc)."""
+    d = pathlib.Path(folder)
+    (d / "san.ext").write_text("subjectAltName=DNS:localhost,IP:127.0.0.1\nbasicConstraints=CA:FALSE\n")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    for command in (
+        ["req", "-x509", *ec, "-days", "2", "-subj", "/CN=cellflow-test-ca", "-keyout", d / "ca.key", "-out", d / "ca.pem"],
+        ["req", "-x509", *ec, "-days", "2", "-subj", "/CN=other-ca", "-keyout", d / "other.key", "-out", d / "other.pem"],
+        ["req", *ec, "-subj", "/CN=localhost", "-keyout", d / "server.key", "-out", d / "server.csr"],
+        ["x509", "-req", "-in", d / "server.csr", "-CA", d / "ca.pem", "-CAkey", d / "ca.key", "-CAcreateserial",
+         "-days", "2", "-extfile", d / "san.ext", "-out", d / "server.pem"],
+        ["req", *ec, "-subj", "/CN=client", "-keyout", d / "client.key", "-out", d / "client.csr"],
+        ["x509", "-req", "-in", d / "client.csr", "-CA", d / "ca.pem", "-CAkey", d / "ca.key", "-CAcreateserial",
+         "-days", "2", "-out", d / "client.pem"],
+    ):
+        subprocess.run(["openssl", *map(str, command)], check=True, capture_output=True)
+    return d

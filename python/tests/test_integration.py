@@ -13,7 +13,6 @@ import numpy as np
 
 import harness  # noqa: F401  (puts the build tree's package on sys.path without ctest)
 import cellflow
-from cellflow.v1 import service_pb2
 
 SERVICE = None
 
@@ -240,6 +239,46 @@ class ClientAgainstServer(unittest.TestCase):
                     os.environ.pop(k, None)
                 else:
                     os.environ[k] = v
+
+
+class MutualTls(unittest.TestCase):
+    """A server with --tls-cert/--tls-key/--tls-client-ca: the client with the
+    CA and a client certificate (arguments, or CELLFLOW_TLS_* as the CLI)
+    gets in; without the certificate, or trusting another CA, it does not."""
+
+    def test_client_certificate_and_ca(self):
+        with tempfile.TemporaryDirectory(prefix="cellflow_python_tls_") as folder:
+            d = harness.make_certificates(folder)
+            args = ["--tls-cert", d / "server.pem", "--tls-key", d / "server.key", "--tls-client-ca", d / "ca.pem"]
+            with harness.LocalService(workers=1, extra_args=map(str, args), folder=d / "service") as service:
+                files = dict(tls_ca_file=str(d / "ca.pem"), tls_cert_file=str(d / "client.pem"),
+                             tls_key_file=str(d / "client.key"))
+                with cellflow.Client(service.address, token=service.token, **files) as client:
+                    job = client.wait(client.submit(harness.small_compression(load_points=2)).id)
+                    self.assertEqual(cellflow.state_name(job), "SUCCEEDED")
+                    self.assertEqual(client.result(job.id)["force_n"].shape, (2,))
+                saved = dict(os.environ)
+                os.environ.update(CELLFLOW_TLS_CA=files["tls_ca_file"], CELLFLOW_TLS_CERT=files["tls_cert_file"],
+                                  CELLFLOW_TLS_KEY=files["tls_key_file"])
+                try:
+                    with cellflow.Client(service.address, token=service.token) as client:
+                        self.assertEqual(client.get(job.id).id, job.id)
+                finally:
+                    os.environ.clear()
+                    os.environ.update(saved)
+                refused = [
+                    dict(tls_ca_file=files["tls_ca_file"]),  # no client certificate
+                    dict(files, tls_ca_file=str(d / "other.pem")),  # the server's certificate not trusted
+                ]
+                for options in refused:
+                    with cellflow.Client(service.address, token=service.token, max_attempts=1, timeout_s=3,
+                                         **options) as client:
+                        with self.assertRaises(cellflow.CellflowError) as caught:
+                            client.get(job.id)
+                        self.assertEqual(caught.exception.code.name, "UNAVAILABLE", options)
+                with cellflow.Client(service.address, token=service.token, max_attempts=1, timeout_s=3) as plain:
+                    with self.assertRaises(cellflow.CellflowError):
+                        plain.get(job.id)
 
 
 if __name__ == "__main__":

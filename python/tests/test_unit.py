@@ -9,6 +9,7 @@ import pathlib
 import tempfile
 import unittest
 
+import grpc
 import h5py
 import numpy as np
 
@@ -91,6 +92,61 @@ class Specs(unittest.TestCase):
             client.submit_study(harness.small_shear_flow(), {"shearFlow.capillaryNumber": 0.05})
         with self.assertRaises(cellflow.CellflowError):
             client.submit_study(harness.small_shear_flow(), {"shearFlow.capillaryNumber": [0.05]}, combination="star")
+
+
+class Unavailable(grpc.RpcError):
+    def code(self):
+        return grpc.StatusCode.UNAVAILABLE
+
+
+class FakeWatchStub:
+    """WatchJob that breaks with UNAVAILABLE after the events of its first
+    script, then serves the next script; records each request."""
+
+    def __init__(self, scripts):
+        self.scripts = list(scripts)
+        self.requests = []
+
+    def WatchJob(self, request, metadata=None):
+        self.requests.append(request)
+        events, breaks = self.scripts.pop(0)
+        stub = self
+
+        class Stream:
+            def __iter__(self):
+                for sequence in events:
+                    if sequence > request.after_sequence:
+                        e = service_pb2.JobEvent(job_id=request.job_id, sequence=sequence)
+                        if sequence == 4:
+                            e.state_change.state = service_pb2.Job.SUCCEEDED
+                        else:
+                            e.progress.fraction_done = sequence / 4
+                        yield e
+                if breaks:
+                    raise Unavailable()
+
+            def cancel(self):
+                stub.cancelled = True
+
+        return Stream()
+
+
+class Watch(unittest.TestCase):
+    def test_a_broken_stream_resumes_after_the_last_sequence(self):
+        client = cellflow.Client("127.0.0.1:1", token="")
+        # The server replays from the start, breaks after 2; the second stream is asked for > 2.
+        client.stub = FakeWatchStub([([1, 2], True), ([1, 2, 3, 4], False)])
+        seen = list(client.watch("job-9"))
+        self.assertEqual([e.sequence for e in seen], [1, 2, 3, 4])
+        self.assertEqual([r.after_sequence for r in client.stub.requests], [0, 2])
+        self.assertEqual(seen[-1].state, "SUCCEEDED")
+
+    def test_an_unreachable_server_ends_the_watch_after_reconnect_s(self):
+        client = cellflow.Client("127.0.0.1:1", token="", reconnect_s=0.0)
+        client.stub = FakeWatchStub([([1], True), ([], True)])
+        with self.assertRaises(cellflow.CellflowError) as caught:
+            list(client.watch("job-9"))
+        self.assertEqual(caught.exception.code, grpc.StatusCode.UNAVAILABLE)
 
 
 class Tokens(unittest.TestCase):

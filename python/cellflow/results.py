@@ -29,8 +29,9 @@ LAYOUT = {
     "positions": "/particles/cell/position",   # {value (frames, vertices, 3) m, step, time}
     "tetrahedra": "/connectivity/cell",        # (tets, 4) vertex indices
     "cell_region": "/connectivity/cell_region",  # (tets,) 0 cytoplasm, 1 nucleus
-    "fields": "/fields",                       # <name>/{step, time, frame_%06d (nz, ny, nx, 3)}
-    "field_frame": "frame_{:06d}",
+    "fields": "/fields",                       # <name>/{step, time, ...}: vector fields on the lattice
+    "field_value": "value",                    # (frames, nz, ny, nx, 3): one time series (result schema 2)
+    "field_frame": "frame_{:06d}",             # (nz, ny, nx, 3): one dataset per frame (result schema 1)
 }
 # Attributes of a field group: node counts (nx, ny, nz), spacing and origin.
 FIELD_ATTRIBUTES = {"dimensions": "dimensions", "spacing_m": "spacing_m", "origin_m": "origin_m"}
@@ -149,7 +150,11 @@ class Result:
                 value = _text(self._read(f, f"{prefix}/{name}"))
                 if isinstance(value, np.ndarray):
                     value = value.reshape(())[()]
-                out[name] = float(value) if isinstance(value, (np.floating, np.integer)) else value
+                if isinstance(value, np.integer):
+                    value = int(value)
+                elif isinstance(value, np.floating):
+                    value = float(value)
+                out[name] = value
         return out
 
     def _read_mesh(self, f):
@@ -214,8 +219,17 @@ class Result:
             if not -count <= frame < count:
                 raise IndexError(f"frame {frame} of {count}")
             frame %= count
-            values = np.asarray(self._read(f, f"{base}/{LAYOUT['field_frame'].format(frame)}"))
             group = f[base]
+            series = group.get(LAYOUT["field_value"])
+            if isinstance(series, h5py.Dataset):
+                if series.ndim != 5 or series.shape[0] != count:
+                    raise ResultFileError(f"{self.path}: {base}/value has shape {series.shape}, not (frames, nz, ny, nx, 3)")
+                size = series.size // max(count, 1) * series.dtype.itemsize
+                if size > self.max_dataset_bytes:
+                    raise ResultFileError(f"{self.path}: a frame of {base} holds {size} bytes, more than {self.max_dataset_bytes}")
+                values = np.asarray(series[frame])
+            else:
+                values = np.asarray(self._read(f, f"{base}/{LAYOUT['field_frame'].format(frame)}"))
             attrs = {key: np.asarray(group.attrs[attr]) for key, attr in FIELD_ATTRIBUTES.items() if attr in group.attrs}
         return values, float(times[frame]), attrs
 

@@ -221,6 +221,29 @@ class Reader(unittest.TestCase):
         with self.assertRaises(IndexError):
             r.positions(3)
 
+    def test_fluid_frames_as_one_series_or_one_dataset_each(self):
+        velocity = np.arange(2 * 2 * 3 * 4 * 3, dtype=np.float32).reshape(2, 2, 3, 4, 3)  # frames, nz, ny, nx, 3
+        for one_series in (True, False):
+            write_compression_file(self.path)
+            with h5py.File(self.path, "a") as f:
+                base = results.LAYOUT["fields"] + "/fluid_velocity"
+                f[base + "/step"] = [0, 10]
+                f[base + "/time"] = [0.0, 1e-3]
+                f[base].attrs["dimensions"] = [4, 3, 2]
+                if one_series:
+                    f[base + "/" + results.LAYOUT["field_value"]] = velocity
+                else:
+                    for k in range(2):
+                        f[base + "/" + results.LAYOUT["field_frame"].format(k)] = velocity[k]
+            r = cellflow.read_result(self.path)
+            self.assertEqual(r.field_names, ["fluid_velocity"])
+            values, time, grid = r.field("fluid_velocity", -1)
+            np.testing.assert_array_equal(values, velocity[1])
+            self.assertEqual(time, 1e-3)
+            self.assertEqual(grid["dimensions"].tolist(), [4, 3, 2])
+            with self.assertRaises(IndexError):
+                r.field("fluid_velocity", 2)
+
     def test_hostile_files_are_refused(self):
         write_compression_file(self.path, tets=np.array([[0, 1, 2, 9]]))
         with self.assertRaisesRegex(results.ResultFileError, "outside"):

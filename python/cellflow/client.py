@@ -152,6 +152,10 @@ class Client:
 
     @staticmethod
     def _tls_credentials(tls, ca_file, cert_file, key_file):
+        if tls is False:  # plaintext, whatever CELLFLOW_TLS_* say
+            if ca_file or cert_file or key_file:
+                raise CellflowError("TLS files given with tls=False")
+            return None
         if ca_file is None and cert_file is None and not tls:
             ca_file = os.environ.get("CELLFLOW_TLS_CA") or None
             cert_file = os.environ.get("CELLFLOW_TLS_CERT") or None
@@ -240,9 +244,12 @@ class Client:
     def list_page(self, *, state: Optional[str] = None, parent_job_id: str = "", page_size: int = 0,
                   page_token: str = ""):
         """One page of jobs, oldest first: (jobs, next_page_token); the token is empty on the last page."""
-        request = service_pb2.ListJobsRequest(
-            page_size=page_size, page_token=page_token, parent_job_id=parent_job_id,
-            state=service_pb2.Job.State.Value(state.upper()) if state else 0)
+        try:
+            state_number = service_pb2.Job.State.Value(state.upper()) if state else 0
+        except ValueError:
+            raise CellflowError(f"list: state {state!r}: one of {', '.join(TERMINAL_STATES + ('QUEUED', 'RUNNING'))}") from None
+        request = service_pb2.ListJobsRequest(page_size=page_size, page_token=page_token,
+                                              parent_job_id=parent_job_id, state=state_number)
         response = self._call(self.stub.ListJobs, request, "list")
         return list(response.jobs), response.next_page_token
 

@@ -4,6 +4,7 @@ UNAVAILABLE only (the one status that says the call did not reach the
 service), a watch that resumes after the last sequence it saw, and the same
 sources of the address and the credentials as the `cellflow` CLI."""
 
+import getpass
 import json
 import os
 import pathlib
@@ -54,6 +55,13 @@ def _read_secret(path) -> str:
     if not token:
         raise CellflowError(f"token file {path} is empty")
     return token
+
+
+def _user_name() -> str:
+    try:
+        return getpass.getuser()  # USER, LOGNAME, ..., else the account's name
+    except Exception:  # no name to be found: the server names the token's user
+        return ""
 
 
 def parse_spec(spec: SpecLike) -> "spec_pb2.JobSpec":
@@ -204,6 +212,12 @@ class Client:
         job_spec.CopyFrom(parse_spec(spec))
         if name is not None:
             job_spec.name = name
+        # The result's author, as the C++ client names it: the spec's, else this
+        # user's name (a JobSpec.author field of newer protos; absent: nothing to set).
+        if "author" in job_spec.DESCRIPTOR.fields_by_name and not job_spec.author:
+            user = _user_name()
+            if user and len(user) <= 256:
+                job_spec.author = user
         request = service_pb2.SubmitJobRequest(spec=job_spec, request_id=request_id or str(uuid.uuid4()))
         return self._call(self.stub.SubmitJob, request, "submit").job
 

@@ -526,6 +526,19 @@ StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& requ
   return response;
 }
 
+namespace {
+
+// A report for a job that no longer exists (cancelled, then deleted while its
+// worker still ran) is not an error of the stream: the ack tells the worker
+// that its attempt is over, so it stops instead of reconnecting until its
+// lease would have expired.
+StatusOr<LeaseCheck> lease_or_deleted(StatusOr<LeaseCheck> check) {
+  if (!check.ok() && check.status().code() == StatusCode::kNotFound) return LeaseCheck::kLost;
+  return check;
+}
+
+}  // namespace
+
 StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
   auto id = parse_id(report.lease().job_id(), "lease.job_id");
   if (!id.ok()) return id.status();
@@ -537,7 +550,7 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
   std::string refused;  // a report the server cannot trust: an error to it, the job unaffected
   switch (report.kind_case()) {
     case v1::WorkerReport::kHeartbeat: {
-      auto beat = store_.heartbeat(*id, token, now(), ttl_ms());
+      auto beat = lease_or_deleted(store_.heartbeat(*id, token, now(), ttl_ms()));
       if (!beat.ok()) return beat.status();
       check = *beat;
       break;
@@ -578,12 +591,15 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
   }
   if (!refused.empty()) {
     // Refused: nothing is appended; the report still renews the lease, as a heartbeat.
-    auto beat = store_.heartbeat(*id, token, now(), ttl_ms());
+    auto beat = lease_or_deleted(store_.heartbeat(*id, token, now(), ttl_ms()));
     if (!beat.ok()) return beat.status();
     check = *beat;
     if (check == LeaseCheck::kValid) spdlog::warn("{}: report refused: {}", job_name(*id), refused);
   } else if (!report.has_heartbeat()) {
     auto outcome = store_.append_event(*id, token, std::move(event), sample_index, now(), ttl_ms());
+    if (!outcome.ok() && outcome.status().code() == StatusCode::kNotFound) {
+      outcome = ReportOutcome{};  // a deleted job (cancelled, then deleted): the attempt is over
+    }
     if (!outcome.ok()) return outcome.status();
     check = outcome->lease;
     sequence = outcome->sequence;

@@ -582,6 +582,27 @@ TEST_F(JobServiceTest, DeleteJobRemovesRowsAndFiles) {
   EXPECT_EQ(service_->delete_job(id).code(), StatusCode::kNotFound);
 }
 
+// A job cancelled and deleted while its worker still runs the attempt: the
+// worker's next heartbeat and sample are answered (not failed) with an ack
+// that ends the attempt, so the worker stops instead of reconnecting.
+TEST_F(JobServiceTest, ReportsForADeletedJobEndTheAttempt) {
+  const std::string id = submit(small_compression(4));
+  const v1::LeaseJobResponse leased = lease();
+  ASSERT_TRUE(leased.found());
+  ASSERT_TRUE(service_->cancel(id).ok());
+  ASSERT_TRUE(service_->delete_job(id).ok());
+  v1::WorkerReport beat;
+  *beat.mutable_lease() = leased.lease();
+  beat.set_report_id(1);
+  beat.mutable_heartbeat();
+  auto ack = service_->report(beat);
+  ASSERT_TRUE(ack.ok()) << ack.status().to_string();
+  EXPECT_FALSE(ack->lease_valid());
+  const v1::ReportAck sample_ack = report_sample(leased.lease(), 0);
+  EXPECT_FALSE(sample_ack.lease_valid());
+  EXPECT_EQ(sample_ack.report_id(), 1);
+}
+
 // Uploads of an attempt that lost its lease are removed, and every .part at
 // server start or stop.
 TEST_F(JobServiceTest, PartialUploadsAreRemoved) {

@@ -15,7 +15,11 @@ packages=(
   libcli11-dev libspdlog-dev nlohmann-json3-dev
   libxml2-utils
   libzip-dev
+  python3 python3-yaml
 )
+# The real-Slurm tests (ctest label "slurm", `CELLFLOW_CI_SLURM=1 .ci/run`)
+# need the daemons; they are heavy and stay out of the default install.
+if [ "${CELLFLOW_INSTALL_SLURM:-0}" = 1 ]; then packages+=(slurm-wlm munge); fi
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi

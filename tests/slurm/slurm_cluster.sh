@@ -51,7 +51,7 @@ cpus=$(nproc)
 memory_mb=$(( $(awk '/MemTotal/ {print $2}' /proc/meminfo) / 1024 / 2 ))
 cat > "$dir/slurm.conf" <<CONF
 ClusterName=cellflowtest
-SlurmctldHost=$node
+SlurmctldHost=$node(127.0.0.1)
 SlurmctldPort=$base
 SlurmdPort=$(( base + 1 ))
 SlurmUser=$user
@@ -81,7 +81,7 @@ InactiveLimit=0
 KillWait=10
 MinJobAge=30
 SchedulerParameters=sched_interval=2
-NodeName=$node CPUs=$cpus RealMemory=$memory_mb State=UNKNOWN
+NodeName=$node NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=$memory_mb State=UNKNOWN
 PartitionName=debug Nodes=$node Default=YES MaxTime=INFINITE State=UP OverSubscribe=FORCE:4
 CONF
 : > "$dir/cgroup.conf"

@@ -223,6 +223,12 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 3600.0));
 
+  double slurm_min_life_s = 5.0;
+  app.add_option("--slurm-min-worker-life-s", slurm_min_life_s,
+                 "a Slurm worker that ends sooner failed to start: the next sbatch waits (backoff)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0));
+
   // cellflow-server token create|list|revoke: API tokens in the database of --data-dir.
   auto* token = app.add_subcommand("token", "manage API tokens (in the database of --data-dir)");
   token->require_subcommand(1);
@@ -245,6 +251,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   options.slurm.poll_interval = std::chrono::milliseconds(static_cast<std::int64_t>(slurm_poll_s * 1000));
   options.slurm.startup_grace = std::chrono::milliseconds(static_cast<std::int64_t>(slurm_startup_s * 1000));
+  options.slurm.min_worker_life =
+      std::chrono::milliseconds(static_cast<std::int64_t>(slurm_min_life_s * 1000));
   spdlog::set_level(spdlog::level::from_str(log_level));
   if (create->parsed()) return token_create(options.data_dir, command);
   if (list->parsed()) return token_list(options.data_dir);

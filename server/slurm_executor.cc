@@ -197,6 +197,7 @@ SlurmExecutor::~SlurmExecutor() {
 void SlurmExecutor::start() {
   spdlog::info("slurm executor: up to {} worker(s), sbatch {} {}", options_.max_workers, options_.sbatch,
                options_.script.string());
+  adopt();
   thread_ = std::thread([this] {
     std::unique_lock lock(wake_mutex_);
     while (!stopping_) {
@@ -217,6 +218,65 @@ void SlurmExecutor::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
+namespace {
+
+// squeue's lines "123_4|RUNNING" (or "123_[0-3%2]|PENDING", "123|RUNNING")
+// -> job -> element -> state, for the jobs `keep` accepts.
+std::map<std::string, std::map<std::string, std::string>> parse_squeue(
+    const std::string& text, const std::function<bool(const std::string&)>& keep) {
+  std::map<std::string, std::map<std::string, std::string>> seen;
+  std::stringstream lines(text);
+  std::string line;
+  while (std::getline(lines, line)) {
+    const auto bar = line.find('|');
+    if (bar == std::string::npos) continue;
+    const std::string element = line.substr(0, bar);
+    std::string state = line.substr(bar + 1);
+    while (!state.empty() && (state.back() == '\r' || state.back() == ' ')) state.pop_back();
+    const auto underscore = element.find('_');
+    const std::string job = element.substr(0, underscore);
+    if (job.empty() || job.find_first_not_of("0123456789") != std::string::npos || !keep(job)) continue;
+    if (underscore == std::string::npos) {
+      seen[job][job] = state;
+    } else if (element.size() > underscore + 1 && element[underscore + 1] == '[') {
+      const std::string ranges = element.substr(underscore + 2, element.find(']') - underscore - 2);
+      for (const std::string& task : expand_tasks(ranges)) seen[job][job + "_" + task] = state;
+    } else {
+      seen[job][element] = state;
+    }
+  }
+  return seen;
+}
+
+}  // namespace
+
+int SlurmExecutor::adopt() {
+  // Workers of an earlier run of this server: this user's jobs of our job name.
+  const ProgramResult listed = run_program(
+      {options_.squeue, "--noheader", "--array", "--me", "--name=" + options_.job_name, "--format=%i|%T"},
+      options_.command_timeout);
+  if (listed.exit_code != 0) {
+    spdlog::warn("slurm executor: squeue failed ({}): {}", listed.exit_code, first_line(listed.err));
+    return 0;
+  }
+  std::lock_guard lock(mutex_);
+  const SteadyTime now = now_();
+  int adopted = 0;
+  for (const auto& [id, elements] : parse_squeue(listed.out, [](const std::string&) { return true; })) {
+    Submitted& job = jobs_[id];
+    job.submitted = now;
+    job.last_listed = now;
+    job.size = static_cast<int>(elements.size());
+    for (const auto& [name, state] : elements) {
+      // Running before we looked: past its start-up (busy or idle, LeaseJob tells).
+      job.elements[name] = Element{state, now - options_.startup_grace - options_.min_worker_life};
+      adopted += ended(state) ? 0 : 1;
+    }
+  }
+  if (adopted > 0) spdlog::info("slurm executor: adopted {} worker(s) already in squeue", adopted);
+  return adopted;
+}
+
 void SlurmExecutor::refresh() {
   if (jobs_.empty()) return;
   std::string ids;
@@ -233,30 +293,26 @@ void SlurmExecutor::refresh() {
       return;  // keep the last known states
     }
   } else {
-    std::stringstream lines(listed.out);
-    std::string line;
-    while (std::getline(lines, line)) {
-      const auto bar = line.find('|');
-      if (bar == std::string::npos) continue;
-      const std::string element = line.substr(0, bar);
-      std::string state = line.substr(bar + 1);
-      while (!state.empty() && (state.back() == '\r' || state.back() == ' ')) state.pop_back();
-      const auto underscore = element.find('_');
-      const std::string job = element.substr(0, underscore);
-      if (jobs_.count(job) == 0) continue;
-      if (underscore == std::string::npos) {
-        seen[job][job] = state;
-      } else if (element.size() > underscore + 1 && element[underscore + 1] == '[') {
-        const std::string ranges = element.substr(underscore + 2, element.find(']') - underscore - 2);
-        for (const std::string& task : expand_tasks(ranges)) seen[job][job + "_" + task] = state;
-      } else {
-        seen[job][element] = state;
-      }
-    }
+    seen = parse_squeue(listed.out, [this](const std::string& job) { return jobs_.count(job) > 0; });
   }
+  // Workers that ended before they could have done anything (a wrong token,
+  // address or path makes them exit at once): slow down, or every round
+  // would submit a new batch of them.
+  int quick_exits = 0;
+  bool healthy = false;
   for (auto it = jobs_.begin(); it != jobs_.end();) {
     Submitted& job = it->second;
     auto found = seen.find(it->first);
+    static const std::map<std::string, std::string> kNone;
+    const auto& listed_now = found != seen.end() ? found->second : kNone;
+    for (const auto& [name, before] : job.elements) {
+      auto after = listed_now.find(name);
+      const bool gone = after == listed_now.end() || ended(after->second);
+      if (!gone || ended(before.state)) continue;
+      if (waiting_to_start(before.state) ||
+          (before.state == "RUNNING" && now - before.running_since < options_.min_worker_life))
+        ++quick_exits;
+    }
     if (found != seen.end()) {
       std::map<std::string, Element> elements;
       for (const auto& [name, state] : found->second) {
@@ -266,6 +322,7 @@ void SlurmExecutor::refresh() {
           element.running_since = before != job.elements.end() && before->second.state == "RUNNING"
                                       ? before->second.running_since
                                       : now;
+          if (now - element.running_since >= options_.min_worker_life) healthy = true;
         }
         elements.emplace(name, element);
       }
@@ -282,6 +339,17 @@ void SlurmExecutor::refresh() {
     } else {
       ++it;
     }
+  }
+  if (quick_exits > 0) {
+    ++failures_;
+    retry_at_ = now + backoff_;
+    spdlog::warn(
+        "slurm executor: {} worker(s) ended within {} ms of their start (see their Slurm output: token, "
+        "--slurm-worker-server, --slurm-worker-path?); next submission in {} ms",
+        quick_exits, options_.min_worker_life.count(), backoff_.count());
+    backoff_ = std::min(backoff_ * 2, options_.max_backoff);
+  } else if (healthy) {
+    backoff_ = options_.initial_backoff;  // workers live: the set-up works
   }
 }
 
@@ -365,8 +433,7 @@ int SlurmExecutor::submit(int count) {
     backoff_ = std::min(backoff_ * 2, options_.max_backoff);
     return 0;
   }
-  backoff_ = options_.initial_backoff;
-  retry_at_ = {};
+  retry_at_ = {};  // the backoff itself resets once a worker lives (refresh)
   Submitted job;
   job.size = count;
   job.submitted = now_();

@@ -46,9 +46,14 @@ struct SlurmExecutorOptions {
   // A worker that Slurm started this recently still counts as free: it has
   // not reached LeaseJob yet (process start, channel, TLS).
   std::chrono::milliseconds startup_grace{30000};
-  std::chrono::milliseconds initial_backoff{5000};  // after a failed sbatch; doubles up to max_backoff
+  // After a failed sbatch or workers that failed to start; doubles up to
+  // max_backoff, back to initial once a worker lives past min_worker_life.
+  std::chrono::milliseconds initial_backoff{5000};
   std::chrono::milliseconds max_backoff{300000};
   std::chrono::milliseconds command_timeout{30000};  // sbatch/squeue taking longer are killed
+  // A worker that ends sooner after it started (or before it ran) failed
+  // to start: the next submission waits (the backoff).
+  std::chrono::milliseconds min_worker_life{5000};
   // A submitted job that squeue has not listed for this long is forgotten
   // (ended, or purged from slurmctld's memory).
   std::chrono::milliseconds forget_after{10000};
@@ -63,8 +68,11 @@ class SlurmExecutor {
   SlurmExecutor(const SlurmExecutor&) = delete;
   SlurmExecutor& operator=(const SlurmExecutor&) = delete;
 
-  // Ticks every poll_interval on a thread until stop().
+  // adopt(), then ticks every poll_interval on a thread until stop().
   void start();
+  // Tracks the workers of an earlier run of this server (squeue --me
+  // --name=job_name): a restart does not submit beyond the cap. Returns how many.
+  int adopt();
   void stop();
   // One round: squeue on the tracked jobs, then sbatch for what the demand
   // needs. Returns the number of workers submitted this round.

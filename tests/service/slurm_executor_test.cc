@@ -159,7 +159,7 @@ TEST_F(SlurmExecutorTest, ScalesUpWhenJobsAreQueuedUpToTheCap) {
   calls = sbatch_calls();
   ASSERT_EQ(calls.size(), 2u);
   EXPECT_EQ(array_of(calls[1]), "0-0");
-  squeue_lists("100_0|RUNNING\n100_1|RUNNING\n100_2|PENDING\n101_0|PENDING\n");
+  squeue_lists("100_0|RUNNING\n100_1|RUNNING\n100_2|RUNNING\n101_0|PENDING\n");
   now_ += 2s;
   EXPECT_EQ(executor.tick(), 0);  // at the cap
   EXPECT_EQ(executor.active_workers(), 4);
@@ -249,6 +249,71 @@ TEST_F(SlurmExecutorTest, EndedAndPurgedJobsAreForgotten) {
   demand_ = {9, 0};
   EXPECT_EQ(executor.tick(), 3);  // the one tracked job (not listed yet) + 3 = the cap
   EXPECT_EQ(executor.active_workers(), 4);
+}
+
+// Workers that die at once (a wrong token, address or path) do not make every
+// round submit new ones: the next sbatch waits, longer each time, until a
+// worker lives past min_worker_life.
+TEST_F(SlurmExecutorTest, WorkersThatEndAtStartBackOff) {
+  SlurmExecutor executor = make();
+  demand_ = {2, 0};
+  EXPECT_EQ(executor.tick(), 2);
+  squeue_lists("100_0|RUNNING\n100_1|RUNNING\n");
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 0);  // starting: counted as free
+  squeue_lists("");               // both exited after 1 s
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 0);
+  EXPECT_EQ(executor.failed_submissions(), 1);
+  now_ += 6s;  // past the 5 s backoff
+  EXPECT_EQ(executor.tick(), 2);
+  squeue_lists("101_0|PENDING\n101_1|PENDING\n");
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 0);
+  squeue_lists("");  // ended before they ran
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 0);
+  EXPECT_EQ(executor.failed_submissions(), 2);
+  now_ += 6s;  // the backoff is 10 s now
+  EXPECT_EQ(executor.tick(), 0);
+  now_ += 5s;
+  EXPECT_EQ(executor.tick(), 2);
+  // These live past min_worker_life (5 s): the set-up works, the backoff is back to 5 s.
+  squeue_lists("102_0|RUNNING\n102_1|RUNNING\n");
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 0);  // starting
+  now_ += 6s;
+  EXPECT_EQ(executor.tick(), 0);  // 7 s: alive, still within the start-up grace
+  squeue_lists("");               // they end (idle exit): no failure, new workers at once
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 2);
+  EXPECT_EQ(executor.failed_submissions(), 2);
+  squeue_lists("103_0|RUNNING\n103_1|RUNNING\n");
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 0);
+  squeue_lists("");  // a quick exit again: the backoff starts over at 5 s, not 20 s
+  now_ += 1s;
+  EXPECT_EQ(executor.tick(), 0);
+  EXPECT_EQ(executor.failed_submissions(), 3);
+  now_ += 6s;
+  EXPECT_EQ(executor.tick(), 2);
+  EXPECT_EQ(sbatch_calls().size(), 5u);
+}
+
+// After a restart the server adopts its workers still in squeue (this
+// user's jobs of its job name) and counts them against the cap.
+TEST_F(SlurmExecutorTest, AdoptsItsWorkersAfterARestart) {
+  SlurmExecutor executor = make();
+  squeue_lists("200_0|RUNNING\n200_1|RUNNING\n201_[0-1]|PENDING\n");
+  EXPECT_EQ(executor.adopt(), 4);
+  EXPECT_EQ(read_file(dir_ / "squeue.args"),
+            "--noheader\n--array\n--me\n--name=cellflow-worker\n--format=%i|%T\n");
+  EXPECT_EQ(executor.active_workers(), 4);
+  demand_ = {10, 0};
+  now_ += 2s;
+  EXPECT_EQ(executor.tick(), 0);  // at the cap
+  EXPECT_EQ(read_file(dir_ / "squeue.args"), "--noheader\n--array\n--format=%i|%T\n--jobs=200,201\n");
+  EXPECT_FALSE(fs::exists(dir_ / "sbatch.log"));
 }
 
 TEST(RunProgram, CapturesOutputAndKillsOnTimeout) {

@@ -9,6 +9,8 @@
 #      Slurm job is cancelled mid-run (the idle worker of the same array gets
 #      SIGTERM too and must not take the job: attempt 2, not 3), the job goes
 #      back to QUEUED, the server submits a new worker, and it succeeds.
+#   3. A restarted server adopts the worker still in squeue (squeue --me
+#      --name): it does not submit past the cap after a restart.
 #   slurm_executor_test.sh BIN_DIR     (cellflow-server, cellflow-worker, cellflow)
 set -euo pipefail
 bin=$(cd "${1:?directory of cellflow-server, cellflow-worker and cellflow}" && pwd)
@@ -42,16 +44,21 @@ echo "slurm: $(sinfo --noheader --format='%P %t %c CPUs' | head -1)"
  "$bin/cellflow-server" token create --worker --user slurm --data-dir "$tmp/data" > "$tmp/worker.token")
 # Slow load points (0.4 s each) so that a job is still running when its
 # worker is cancelled; idle workers exit after 6 s.
-"$bin/cellflow-server" --data-dir "$tmp/data" --listen 127.0.0.1:0 --port-file "$tmp/port" \
-  --worker-listen 127.0.0.1:0 --executor slurm --slurm-max-workers 2 --slurm-poll-s 0.5 \
-  --slurm-job-name cellflow-test-worker --slurm-idle-exit-s 6 \
-  --slurm-worker-path "$bin/cellflow-worker" --slurm-worker-token-file "$tmp/worker.token" \
-  --slurm-arg=--output="$tmp/worker-%A_%a.log" --slurm-arg=--cpus-per-task=1 \
-  --slurm-worker-arg=--threads=1 --slurm-worker-arg=--debug-delay-per-point-ms=400 \
-  > "$tmp/server.log" 2>&1 &
-server_pid=$!
-for _ in $(seq 100); do [ -s "$tmp/port" ] && break; sleep 0.1; done
-[ -s "$tmp/port" ] || fail "the server did not start"
+# A worker cancelled 3 s after its start is no failed start (--slurm-min-worker-life-s 1).
+start_server() {  # worker-listen address
+  rm -f "$tmp/port"
+  "$bin/cellflow-server" --data-dir "$tmp/data" --listen 127.0.0.1:0 --port-file "$tmp/port" \
+    --worker-listen "$1" --worker-port-file "$tmp/worker-port" --executor slurm --slurm-max-workers 2 \
+    --slurm-poll-s 0.5 --slurm-job-name cellflow-test-worker --slurm-idle-exit-s 6 --slurm-min-worker-life-s 1 \
+    --slurm-worker-path "$bin/cellflow-worker" --slurm-worker-token-file "$tmp/worker.token" \
+    --slurm-arg=--output="$tmp/worker-%A_%a.log" --slurm-arg=--cpus-per-task=1 \
+    --slurm-worker-arg=--threads=1 --slurm-worker-arg=--debug-delay-per-point-ms=400 \
+    >> "$tmp/server.log" 2>&1 &
+  server_pid=$!
+  for _ in $(seq 100); do [ -s "$tmp/port" ] && break; sleep 0.1; done
+  [ -s "$tmp/port" ] || fail "the server did not start"
+}
+start_server 127.0.0.1:0
 cli=("$bin/cellflow" --server "127.0.0.1:$(cat "$tmp/port")" --token-file "$tmp/user.token")
 submit() {  # load points
   "${cli[@]}" submit compression --radius-m 5e-6 --youngs-modulus-pa 1000 --max-deformation 0.1 \
@@ -127,3 +134,11 @@ new_worker=$(field "$slow" worker_id)
 [ "${new_worker#slurm-$slurm_job}" = "$new_worker" ] || fail "$slow finished on $new_worker of the cancelled job"
 [ "$(submissions)" -gt "$before" ] || fail "no new worker was submitted for the handed-back job"
 echo "ok: $slow SUCCEEDED at attempt 2 on $new_worker (a new Slurm job)"
+
+echo "== 3. a restarted server adopts its workers still in squeue"
+kill -TERM "$server_pid"; wait "$server_pid" || true
+server_pid=""
+[ -n "$(squeue --noheader --name=cellflow-test-worker)" ] || fail "the new worker exited already (idle 6 s)"
+start_server "127.0.0.1:$(cat "$tmp/worker-port")"   # the same worker port: the worker reconnects
+grep -q "adopted 1 worker(s) already in squeue" "$tmp/server.log" || fail "the restarted server adopted nothing"
+echo "ok: $(grep -o "adopted .*" "$tmp/server.log" | tail -1)"

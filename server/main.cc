@@ -200,17 +200,17 @@ int main(int argc, char** argv) {
                  "extra sbatch option, e.g. --slurm-arg=--time=04:00:00 (repeatable)")
       ->allow_extra_args(false);
   app.add_option("--slurm-job-name", options.slurm.job_name, "sbatch --job-name")->capture_default_str();
-  app.add_option("--slurm-worker-path", options.slurm_worker_path,
+  app.add_option("--slurm-worker-path", options.slurm_worker.path,
                  "cellflow-worker on the compute nodes (default: beside this binary)");
-  app.add_option("--slurm-worker-server", options.slurm_worker_server,
+  app.add_option("--slurm-worker-server", options.slurm_worker.server,
                  "the worker listener as the compute nodes dial it (default: the bound --worker-listen)");
-  app.add_option("--slurm-worker-token-file", options.slurm_worker_token_file,
+  app.add_option("--slurm-worker-token-file", options.slurm_worker.token_file,
                  "worker token file (mode 0600) as the compute nodes see it");
-  app.add_option("--slurm-idle-exit-s", options.slurm_idle_exit_s,
+  app.add_option("--slurm-idle-exit-s", options.slurm_worker.idle_exit_s,
                  "a Slurm worker exits after this long without a job")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 1e7));
-  app.add_option("--slurm-worker-arg", options.slurm_worker_args,
+  app.add_option("--slurm-worker-arg", options.slurm_worker.args,
                  "extra argument for Slurm workers, e.g. --slurm-worker-arg=--threads=8 (repeatable)")
       ->allow_extra_args(false);
   double slurm_poll_s = 2.0;

@@ -220,21 +220,6 @@ int lock_data_dir(const fs::path& dir, std::string* message) {
   return fd;
 }
 
-// One Slurm worker's command line (after the batch script, which adds --name).
-std::vector<std::string> slurm_worker_command(const ServerOptions& options,
-                                              const std::string& worker_address) {
-  std::vector<std::string> command = {
-      options.slurm_worker_path.empty() ? default_worker_path() : options.slurm_worker_path, "--server",
-      options.slurm_worker_server.empty() ? worker_address : options.slurm_worker_server, "--idle-exit-s",
-      std::to_string(options.slurm_idle_exit_s)};
-  if (!options.slurm_worker_token_file.empty()) {
-    command.push_back("--token-file");
-    command.push_back(options.slurm_worker_token_file);
-  }
-  command.insert(command.end(), options.slurm_worker_args.begin(), options.slurm_worker_args.end());
-  return command;
-}
-
 void schedule_reaper(boost::asio::steady_timer& timer, JobService& jobs, std::chrono::milliseconds period) {
   timer.expires_after(period);
   timer.async_wait([&timer, &jobs, period](const boost::system::error_code& error) {
@@ -402,13 +387,13 @@ int run_server(const ServerOptions& options) {
   std::unique_ptr<SlurmExecutor> slurm;
   if (options.executor == "slurm") {
     SlurmExecutorOptions slurm_options = options.slurm;
-    slurm_options.script = fs::absolute(fs::path(options.data_dir)) / "slurm" / "cellflow-worker.sbatch";
-    if (Status s = write_worker_script(slurm_options.script); !s.ok()) {
+    if (Status s = configure_slurm_executor(
+            slurm_options, options.slurm_worker, options.data_dir, default_worker_path(),
+            bound_address(options.worker_listen, worker_port), auth_mode == AuthMode::kToken);
+        !s.ok()) {
       spdlog::error("{}", s.to_string());
       return 1;
     }
-    slurm_options.worker_command =
-        slurm_worker_command(options, bound_address(options.worker_listen, worker_port));
     slurm = std::make_unique<SlurmExecutor>(std::move(slurm_options), [&jobs]() -> SlurmDemand {
       if (jobs.draining()) return {};  // shutting down: no new workers
       return {jobs.queued_jobs(), jobs.waiting_workers()};

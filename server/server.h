@@ -38,12 +38,8 @@ struct ServerOptions {
   // "local": only the --workers pool; "slurm": also submits workers with
   // sbatch when jobs wait and no worker is free (server/slurm_executor.h).
   std::string executor = "local";
-  SlurmExecutorOptions slurm;  // sbatch/squeue, cap, partition, sbatch_args; script and command are set here
-  std::string slurm_worker_path;               // default: worker_path's default (beside this binary)
-  std::string slurm_worker_server;             // what Slurm workers dial; default: the bound --worker-listen
-  std::string slurm_worker_token_file;         // the worker token file on the compute nodes (mode 0600)
-  double slurm_idle_exit_s = 60.0;             // Slurm workers exit after this long without a job
-  std::vector<std::string> slurm_worker_args;  // more worker arguments (--threads, --tls-ca ...)
+  SlurmExecutorOptions slurm;        // sbatch/squeue, cap, partition, sbatch_args, timing
+  SlurmWorkerSettings slurm_worker;  // the command line of the workers it submits
 };
 
 // Runs until SIGINT/SIGTERM; returns the process exit code (0 after a clean

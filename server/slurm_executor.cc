@@ -184,6 +184,34 @@ Status write_worker_script(const fs::path& path) {
   return {};
 }
 
+Status configure_slurm_executor(SlurmExecutorOptions& options, const SlurmWorkerSettings& worker,
+                                const fs::path& data_dir, const std::string& default_worker_path,
+                                const std::string& default_worker_address, bool tokens_checked) {
+  options.script = fs::absolute(data_dir) / "slurm" / "cellflow-worker.sbatch";
+  if (Status s = write_worker_script(options.script); !s.ok()) return s;
+  const std::string address = worker.server.empty() ? default_worker_address : worker.server;
+  std::ostringstream idle;
+  idle << worker.idle_exit_s;
+  options.worker_command = {worker.path.empty() ? default_worker_path : worker.path, "--server", address,
+                            "--idle-exit-s", idle.str()};
+  if (!worker.token_file.empty()) {
+    options.worker_command.push_back("--token-file");
+    options.worker_command.push_back(worker.token_file);
+  }
+  options.worker_command.insert(options.worker_command.end(), worker.args.begin(), worker.args.end());
+  const std::string host = address.substr(0, address.rfind(':'));
+  if (host == "127.0.0.1" || host == "localhost" || host == "[::1]" || address.rfind("unix", 0) == 0)
+    spdlog::warn(
+        "--executor slurm: workers dial {}: only those on this node can reach it; set --worker-listen "
+        "and --slurm-worker-server",
+        address);
+  if (tokens_checked && worker.token_file.empty() && std::getenv("CELLFLOW_WORKER_TOKEN") == nullptr)
+    spdlog::warn(
+        "--executor slurm: no --slurm-worker-token-file (nor CELLFLOW_WORKER_TOKEN to export): the "
+        "workers will be refused");
+  return {};
+}
+
 SlurmExecutor::SlurmExecutor(SlurmExecutorOptions options, std::function<SlurmDemand()> demand, Clock now)
     : options_(std::move(options)),
       demand_(std::move(demand)),

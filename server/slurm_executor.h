@@ -114,6 +114,22 @@ class SlurmExecutor {
   bool stopping_ = false;
 };
 
+// One Slurm worker's command line, from the server's options.
+struct SlurmWorkerSettings {
+  std::string path;        // cellflow-worker on the nodes; empty: the caller's default
+  std::string server;      // what the workers dial; empty: the caller's default (the bound worker listener)
+  std::string token_file;  // the worker token file as the nodes see it (mode 0600)
+  double idle_exit_s = 60.0;      // they exit after this long without a job
+  std::vector<std::string> args;  // more worker arguments (--threads, --tls-ca ...); not --name
+};
+
+// Writes the batch script to data_dir/slurm/cellflow-worker.sbatch and fills
+// in options.script and options.worker_command (logging what will not work:
+// a loopback address, no credential where tokens are checked).
+Status configure_slurm_executor(SlurmExecutorOptions& options, const SlurmWorkerSettings& worker,
+                                const std::filesystem::path& data_dir, const std::string& default_worker_path,
+                                const std::string& default_worker_address, bool tokens_checked);
+
 // The fixed batch script: one worker per array element, its command line
 // given as the script's arguments (sbatch SCRIPT ARGS...), exec'd as "$@"
 // so no shell ever parses it. The text depends on nothing from outside.

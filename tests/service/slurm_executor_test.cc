@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -314,6 +315,42 @@ TEST_F(SlurmExecutorTest, AdoptsItsWorkersAfterARestart) {
   EXPECT_EQ(executor.tick(), 0);  // at the cap
   EXPECT_EQ(read_file(dir_ / "squeue.args"), "--noheader\n--array\n--format=%i|%T\n--jobs=200,201\n");
   EXPECT_FALSE(fs::exists(dir_ / "sbatch.log"));
+}
+
+// The batch script runs the worker command as given, argument by argument
+// (no shell parses it), and names the worker after the array element.
+TEST_F(SlurmExecutorTest, BatchScriptRunsTheCommandVerbatim) {
+  SlurmExecutorOptions options;
+  SlurmWorkerSettings worker;
+  worker.token_file = "/home/u/.config/cellflow/worker-token";
+  worker.idle_exit_s = 6;
+  worker.args = {"--threads=8"};
+  ASSERT_TRUE(configure_slurm_executor(options, worker, dir_ / "data", "/opt/bin/cellflow-worker",
+                                       "login1:50052", true)
+                  .ok());
+  EXPECT_EQ(options.script, fs::absolute(dir_ / "data") / "slurm" / "cellflow-worker.sbatch");
+  const std::vector<std::string> expected = {"/opt/bin/cellflow-worker",
+                                             "--server",
+                                             "login1:50052",
+                                             "--idle-exit-s",
+                                             "6",
+                                             "--token-file",
+                                             "/home/u/.config/cellflow/worker-token",
+                                             "--threads=8"};
+  EXPECT_EQ(options.worker_command, expected);
+  ::setenv("SLURM_ARRAY_JOB_ID", "77", 1);
+  ::setenv("SLURM_ARRAY_TASK_ID", "3", 1);
+  ::setenv("SLURM_CPUS_PER_TASK", "4", 1);
+  const ProgramResult ran =
+      run_program({options.script.string(), "/bin/sh", "-c", "printf '%s|' \"$OMP_NUM_THREADS\" \"$@\"", "sh",
+                   " a b; $(touch " + (dir_ / "pwned").string() + ") `id` *"},
+                  5s);
+  ::unsetenv("SLURM_ARRAY_JOB_ID");
+  ::unsetenv("SLURM_ARRAY_TASK_ID");
+  ::unsetenv("SLURM_CPUS_PER_TASK");
+  EXPECT_EQ(ran.exit_code, 0) << ran.err;
+  EXPECT_EQ(ran.out, "4| a b; $(touch " + (dir_ / "pwned").string() + ") `id` *|--name|slurm-77_3|");
+  EXPECT_FALSE(fs::exists(dir_ / "pwned"));
 }
 
 TEST(RunProgram, CapturesOutputAndKillsOnTimeout) {

@@ -127,6 +127,13 @@ for _ in $(seq 100); do
 done
 grep -q "$slow handed back" "$tmp/server.log" || fail "$slow was not handed back at scancel"
 echo "ok: $slow handed back: $(grep "$slow handed back" "$tmp/server.log" | head -1 | sed 's/.*handed back: //')"
+# The other worker of that array (idle after $quick) got SIGTERM as well.
+for log in "$tmp"/worker-"${slurm_job}"_*.log; do
+  if grep -q "stopped after" "$log" && ! grep -q "$slow: attempt 1" "$log"; then
+    grep -q "$slow" "$log" && fail "the idle worker of $log took $slow after SIGTERM"
+    echo "ok: the idle worker of the same array stopped without a lease ($(basename "$log"))"
+  fi
+done
 wait_state "$slow" SUCCEEDED 90
 attempt=$(field "$slow" attempt)
 new_worker=$(field "$slow" worker_id)
@@ -140,5 +147,9 @@ kill -TERM "$server_pid"; wait "$server_pid" || true
 server_pid=""
 [ -n "$(squeue --noheader --name=cellflow-test-worker)" ] || fail "the new worker exited already (idle 6 s)"
 start_server "127.0.0.1:$(cat "$tmp/worker-port")"   # the same worker port: the worker reconnects
+for _ in $(seq 50); do  # adopt() runs squeue as the executor starts, after the port file appears
+  grep -q "adopted 1 worker(s) already in squeue" "$tmp/server.log" && break
+  sleep 0.1
+done
 grep -q "adopted 1 worker(s) already in squeue" "$tmp/server.log" || fail "the restarted server adopted nothing"
 echo "ok: $(grep -o "adopted .*" "$tmp/server.log" | tail -1)"

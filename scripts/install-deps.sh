@@ -18,10 +18,13 @@ packages=(
   # The Python client (python/) and its tests: Debian's interpreter and modules,
   # pip/venv/setuptools/wheel for `pip install ./python`, meshio and matplotlib
   # for the mesh conversion and examples/python.
-  python3 python3-grpcio python3-protobuf python3-numpy python3-h5py
+  python3 python3-yaml python3-grpcio python3-protobuf python3-numpy python3-h5py
   python3-pip python3-venv python3-setuptools python3-wheel
   python3-meshio python3-matplotlib
 )
+# The real-Slurm tests (ctest label "slurm", `CELLFLOW_CI_SLURM=1 .ci/run`)
+# need the daemons; they are heavy and stay out of the default install.
+if [ "${CELLFLOW_INSTALL_SLURM:-0}" = 1 ]; then packages+=(slurm-wlm munge); fi
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi

@@ -498,8 +498,16 @@ StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& requ
   v1::LeaseJobResponse response;
   response.set_lease_ttl_s(options_.lease_ttl_s);
   response.set_heartbeat_interval_s(options_.heartbeat_interval_s);
+  waiting_workers_.fetch_add(1);
+  struct Waiting {
+    std::atomic<int>& count;
+    ~Waiting() { count.fetch_sub(1); }
+  } waiting{waiting_workers_};
   while (!notifier_.shutting_down()) {
     const std::uint64_t generation = notifier_.queue_generation();
+    // A worker that cancelled its poll (it is stopping: SIGTERM) gets no job:
+    // a lease it never sees would only expire and cost the job an attempt.
+    if (client_gone()) break;
     // While draining nothing is handed out; the poll still waits its time so
     // that workers do not spin against a draining server.
     if (!draining()) {
@@ -507,6 +515,16 @@ StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& requ
       if (!claim.ok()) return claim.status();
       if (claim->has_value()) {
         Claim& c = **claim;
+        if (client_gone()) {
+          // The caller left while the claim was written: hand it back at once
+          // (not charged), rather than let the lease expire.
+          auto released =
+              store_.release(parse_job_name(c.job.id()).value_or(0), c.lease_token,
+                             "worker " + request.worker_id() + " left before the lease reached it", now());
+          if (released.ok()) published(*released);
+          notifier_.queue_changed();
+          break;
+        }
         published(c.job);
         spdlog::info("{} leased by {} (attempt {})", c.job.id(), request.worker_id(), c.job.attempt());
         response.set_found(true);

@@ -117,6 +117,10 @@ class JobService {
   // Every RUNNING job back to QUEUED (shutdown after the grace period).
   int release_all_running(const std::string& reason);
   std::int64_t running_jobs() { return store_.count(v1::Job::RUNNING); }
+  std::int64_t queued_jobs() { return store_.count(v1::Job::QUEUED); }
+  // Workers waiting in LeaseJob right now: free workers (the Slurm executor
+  // submits more only when there are none; server/slurm_executor.h).
+  int waiting_workers() const { return waiting_workers_.load(); }
   // Removes every result upload (results/*.part) that no attempt can still
   // finish: at server start and at shutdown.
   int remove_all_uploads();
@@ -150,6 +154,7 @@ class JobService {
   JobServiceOptions options_;
   jobs::SceneRegistry registry_;  // converts and validates each submitted spec once
   std::atomic<bool> draining_{false};
+  std::atomic<int> waiting_workers_{0};
   MeshStore meshes_;
   std::mutex sample_bounds_mutex_;
   std::map<std::int64_t, std::int64_t> sample_bounds_;  // job id -> max_sample_index

@@ -183,6 +183,51 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e9));
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  // --executor slurm (deploy/README.md, "Slurm"): workers by sbatch while jobs wait.
+  app.add_option("--executor", options.executor,
+                 "local: the --workers pool only; slurm: also submit worker job arrays with sbatch when "
+                 "jobs are queued and no worker is free")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"local", "slurm"}));
+  app.add_option("--slurm-max-workers", options.slurm.max_workers,
+                 "Slurm workers (pending + running) submitted at most")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--slurm-sbatch", options.slurm.sbatch, "sbatch executable")->capture_default_str();
+  app.add_option("--slurm-squeue", options.slurm.squeue, "squeue executable")->capture_default_str();
+  app.add_option("--slurm-partition", options.slurm.partition, "sbatch --partition of the workers");
+  app.add_option("--slurm-arg", options.slurm.sbatch_args,
+                 "extra sbatch option, e.g. --slurm-arg=--time=04:00:00 (repeatable)")
+      ->allow_extra_args(false);
+  app.add_option("--slurm-job-name", options.slurm.job_name, "sbatch --job-name")->capture_default_str();
+  app.add_option("--slurm-worker-path", options.slurm_worker.path,
+                 "cellflow-worker on the compute nodes (default: beside this binary)");
+  app.add_option("--slurm-worker-server", options.slurm_worker.server,
+                 "the worker listener as the compute nodes dial it (default: the bound --worker-listen)");
+  app.add_option("--slurm-worker-token-file", options.slurm_worker.token_file,
+                 "worker token file (mode 0600) as the compute nodes see it");
+  app.add_option("--slurm-idle-exit-s", options.slurm_worker.idle_exit_s,
+                 "a Slurm worker exits after this long without a job")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 1e7));
+  app.add_option("--slurm-worker-arg", options.slurm_worker.args,
+                 "extra argument for Slurm workers, e.g. --slurm-worker-arg=--threads=8 (repeatable)")
+      ->allow_extra_args(false);
+  double slurm_poll_s = 2.0;
+  app.add_option("--slurm-poll-s", slurm_poll_s, "how often the executor looks at the queue and squeue")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 3600.0));
+  double slurm_startup_s = 30.0;
+  app.add_option("--slurm-startup-s", slurm_startup_s,
+                 "a Slurm worker that started this recently counts as free (it is still connecting)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0));
+
+  double slurm_min_life_s = 5.0;
+  app.add_option("--slurm-min-worker-life-s", slurm_min_life_s,
+                 "a Slurm worker that ends sooner failed to start: the next sbatch waits (backoff)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0));
 
   // cellflow-server token create|list|revoke: API tokens in the database of --data-dir.
   auto* token = app.add_subcommand("token", "manage API tokens (in the database of --data-dir)");
@@ -204,6 +249,10 @@ int main(int argc, char** argv) {
   revoke->fallthrough();
 
   CLI11_PARSE(app, argc, argv);
+  options.slurm.poll_interval = std::chrono::milliseconds(static_cast<std::int64_t>(slurm_poll_s * 1000));
+  options.slurm.startup_grace = std::chrono::milliseconds(static_cast<std::int64_t>(slurm_startup_s * 1000));
+  options.slurm.min_worker_life =
+      std::chrono::milliseconds(static_cast<std::int64_t>(slurm_min_life_s * 1000));
   spdlog::set_level(spdlog::level::from_str(log_level));
   if (create->parsed()) return token_create(options.data_dir, command);
   if (list->parsed()) return token_list(options.data_dir);

@@ -383,6 +383,24 @@ int run_server(const ServerOptions& options) {
   WorkerPool pool(io, pool_options);
   pool.start();
 
+  // --executor slurm: workers by sbatch while jobs wait and none is free.
+  std::unique_ptr<SlurmExecutor> slurm;
+  if (options.executor == "slurm") {
+    SlurmExecutorOptions slurm_options = options.slurm;
+    if (Status s = configure_slurm_executor(
+            slurm_options, options.slurm_worker, options.data_dir, default_worker_path(),
+            bound_address(options.worker_listen, worker_port), auth_mode == AuthMode::kToken);
+        !s.ok()) {
+      spdlog::error("{}", s.to_string());
+      return 1;
+    }
+    slurm = std::make_unique<SlurmExecutor>(std::move(slurm_options), [&jobs]() -> SlurmDemand {
+      if (jobs.draining()) return {};  // shutting down: no new workers
+      return {jobs.queued_jobs(), jobs.waiting_workers()};
+    });
+    slurm->start();
+  }
+
   boost::asio::steady_timer reaper(io);
   const auto reap_period = std::clamp(std::chrono::milliseconds(ttl_ms / 4), std::chrono::milliseconds(50),
                                       std::chrono::milliseconds(1000));
@@ -400,6 +418,7 @@ int run_server(const ServerOptions& options) {
   wait_signal();
 
   io.run();
+  if (slurm) slurm->stop();
   server->Wait();
   worker_server->Wait();
   jobs.remove_all_uploads();

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "server/slurm_executor.h"
+
 namespace cellflow::server {
 
 struct ServerOptions {
@@ -33,6 +35,11 @@ struct ServerOptions {
   bool sqlite_synchronous_full = false;
   std::int64_t max_mesh_bytes = 64LL << 20;  // UploadMesh size limit
   double max_run_time_s = 86400.0;           // an attempt leased longer ago loses its lease; 0: no limit
+  // "local": only the --workers pool; "slurm": also submits workers with
+  // sbatch when jobs wait and no worker is free (server/slurm_executor.h).
+  std::string executor = "local";
+  SlurmExecutorOptions slurm;        // sbatch/squeue, cap, partition, sbatch_args, timing
+  SlurmWorkerSettings slurm_worker;  // the command line of the workers it submits
 };
 
 // Runs until SIGINT/SIGTERM; returns the process exit code (0 after a clean

@@ -24,7 +24,8 @@ int main(int argc, char** argv) {
   app.add_option("--scratch-dir", options.scratch_dir, "where results are written before upload");
   app.add_option("--max-jobs", options.max_jobs, "exit after this many jobs (0: no limit)")
       ->capture_default_str();
-  app.add_option("--idle-exit-s", options.idle_exit_s, "exit after this long without a job (0: never)")
+  app.add_option("--idle-exit-s,--exit-when-idle-s", options.idle_exit_s,
+                 "exit after this long without a job (0: never; Slurm workers end so)")
       ->capture_default_str();
   app.add_option("--threads", options.threads, "OpenMP threads for the physics (0: default)")
       ->capture_default_str();

@@ -51,6 +51,12 @@ Worker::Worker(WorkerOptions options, std::unique_ptr<v1::WorkerService::StubInt
   }
 }
 
+void Worker::stop() {
+  std::lock_guard lock(lease_call_mutex_);
+  stop_.store(true);
+  if (lease_call_ != nullptr) lease_call_->TryCancel();
+}
+
 bool Worker::sleep_unless_stopped(std::chrono::milliseconds duration) {
   const auto end = Clock::now() + duration;
   while (Clock::now() < end) {
@@ -105,7 +111,26 @@ int Worker::run() {
     grpc::ClientContext context;
     const auto asked = Clock::now();
     rpc::set_deadline(context, seconds_to_ms(request.wait_s() + 10.0, 10s));
+    {
+      // Registered under the lock that stop() takes: a stop either comes
+      // before (seen here, no call) or cancels this call.
+      std::lock_guard lock(lease_call_mutex_);
+      if (stop_.load()) break;
+      lease_call_ = &context;
+    }
     const grpc::Status status = stub_->LeaseJob(&context, request, &response);
+    {
+      std::lock_guard lock(lease_call_mutex_);
+      lease_call_ = nullptr;
+    }
+    if (stop_.load()) {
+      // Stopped while polling: a lease that came anyway goes back unrun.
+      if (status.ok() && response.found()) {
+        spdlog::info("{}: leased as the worker stopped; handing it back unrun", response.lease().job_id());
+        hand_back(response.lease());
+      }
+      break;
+    }
     if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
         status.error_code() == grpc::StatusCode::PERMISSION_DENIED) {
       // Retrying cannot help: the credential is missing, wrong or revoked.
@@ -139,6 +164,31 @@ int Worker::run() {
     fs::remove(options_.scratch_dir, ignored);  // only if empty
   }
   return 0;
+}
+
+bool Worker::hand_back(const v1::Lease& lease) {
+  v1::ReleaseJobRequest request;
+  *request.mutable_lease() = lease;
+  request.set_reason("worker " + id_ + " stopped");
+  // Tried again while the server is UNAVAILABLE, for a few seconds (the worker is stopping).
+  rpc::RetryOptions release_retry;
+  release_retry.deadline = 2s;
+  release_retry.max_attempts = 0;
+  release_retry.give_up_after = 4s;
+  release_retry.initial_backoff = 100ms;
+  release_retry.max_backoff = 1000ms;
+  const grpc::Status status = rpc::call_with_retry(release_retry, [&](grpc::ClientContext& context) {
+    v1::FinishJobResponse response;
+    return stub_->ReleaseJob(&context, request, &response);
+  });
+  if (status.ok()) {
+    spdlog::info("{}: handed back", lease.job_id());
+  } else {
+    spdlog::warn(
+        "{}: hand-back failed ({}); the server requeues the job when the lease expires or it restarts",
+        lease.job_id(), status.error_message());
+  }
+  return status.ok();
 }
 
 Status Worker::fetch_mesh(v1::JobSpec& spec, const v1::Lease& lease) {
@@ -259,27 +309,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     return;
   }
   if (stop_.load() && outcome.status.code() == StatusCode::kCancelled) {
-    v1::ReleaseJobRequest request;
-    *request.mutable_lease() = lease;
-    request.set_reason("worker " + id_ + " stopped");
-    // Tried again while the server is UNAVAILABLE, for a few seconds (the worker is stopping).
-    rpc::RetryOptions release_retry;
-    release_retry.deadline = 2s;
-    release_retry.max_attempts = 0;
-    release_retry.give_up_after = 4s;
-    release_retry.initial_backoff = 100ms;
-    release_retry.max_backoff = 1000ms;
-    const grpc::Status status = rpc::call_with_retry(release_retry, [&](grpc::ClientContext& context) {
-      v1::FinishJobResponse response;
-      return stub_->ReleaseJob(&context, request, &response);
-    });
-    if (status.ok()) {
-      spdlog::info("{}: handed back", job);
-    } else {
-      spdlog::warn(
-          "{}: hand-back failed ({}); the server requeues the job when the lease expires or it restarts", job,
-          status.error_message());
-    }
+    hand_back(lease);
     cleanup();
     return;
   }

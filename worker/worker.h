@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "cellflow/v1/worker.grpc.pb.h"
@@ -32,7 +33,7 @@ struct WorkerOptions {
   // The worker credential (bearer_token) and TLS of the channel to the
   // server's worker listener; see worker/main.cc for where they come from.
   rpc::ChannelOptions channel;
-  std::string library_dir;           // fit jobs' curve library; empty: jobs::default_library_dir()
+  std::string library_dir;  // fit jobs' curve library; empty: jobs::default_library_dir()
 };
 
 class Worker {
@@ -49,8 +50,10 @@ class Worker {
 
   // Runs until stop() or the max_jobs / idle_exit_s limits; returns the exit code.
   int run();
-  // Asks the worker to stop: a running job is handed back to the queue. Thread-safe.
-  void stop() { stop_.store(true); }
+  // Asks the worker to stop: a running job is handed back to the queue, and
+  // no new lease is taken (a LeaseJob poll in flight is cancelled; a lease
+  // that still arrives is handed back unrun). Thread-safe.
+  void stop();
   const std::string& id() const { return id_; }
   // Spec conversions of this worker so far (one per attempt it ran).
   std::int64_t conversions() const { return registry_.conversions(); }
@@ -63,13 +66,17 @@ class Worker {
   // Removes the scratch directories of workers that are gone (default location only).
   void remove_stale_scratch();
   bool sleep_unless_stopped(std::chrono::milliseconds duration);
+  // ReleaseJob for a lease this worker will not finish; true if the server took it.
+  bool hand_back(const v1::Lease& lease);
 
   WorkerOptions options_;
   std::string id_;
   std::unique_ptr<v1::WorkerService::StubInterface> stub_;
   jobs::SceneRegistry registry_;
   std::atomic<bool> stop_{false};
-  bool own_scratch_ = false;  // the default per-pid scratch directory: removed on exit
+  std::mutex lease_call_mutex_;
+  grpc::ClientContext* lease_call_ = nullptr;  // the LeaseJob poll in flight, for stop()
+  bool own_scratch_ = false;                   // the default per-pid scratch directory: removed on exit
 };
 
 }  // namespace cellflow::worker

@@ -275,6 +275,39 @@ TEST_F(JobServiceTest, ShutdownDrainingRefusesWork) {
   EXPECT_FALSE(lease().found());
 }
 
+// A worker that cancelled its LeaseJob poll (it got SIGTERM) is handed no
+// job: the job stays QUEUED with no attempt used, and the next worker gets it
+// as attempt 1. While a poll waits it counts as a free worker.
+TEST_F(JobServiceTest, CancelledLeasePollTakesNoJob) {
+  const std::string id = submit(small_compression());
+  v1::LeaseJobRequest request;
+  request.set_worker_id("stopping-worker");
+  request.set_wait_s(0);
+  auto response = service_->lease(request, [] { return true; });
+  ASSERT_TRUE(response.ok());
+  EXPECT_FALSE(response->found());
+  auto job = service_->get(id);
+  ASSERT_TRUE(job.ok());
+  EXPECT_EQ(job->state(), v1::Job::QUEUED);
+  EXPECT_EQ(job->attempt(), 0);
+  EXPECT_EQ(service_->queued_jobs(), 1);
+
+  // A poll that waits is a free worker; it is counted until it returns.
+  request.set_worker_id("idle-worker");
+  request.set_wait_s(2);
+  std::atomic<bool> leave{false};
+  const v1::LeaseJobResponse leased = lease();  // the queued job, attempt 1
+  EXPECT_EQ(leased.lease().attempt(), 1);
+  EXPECT_EQ(service_->waiting_workers(), 0);
+  std::thread poll([&] { (void)service_->lease(request, [&] { return leave.load(); }); });
+  for (int i = 0; i < 100 && service_->waiting_workers() == 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_EQ(service_->waiting_workers(), 1);
+  leave.store(true);
+  poll.join();
+  EXPECT_EQ(service_->waiting_workers(), 0);
+}
+
 // --- hostile input (issue 13) ---
 
 // A spec naming any file of the server's machine is refused at submit:

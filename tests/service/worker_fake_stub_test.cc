@@ -10,6 +10,7 @@
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -57,6 +58,9 @@ struct FakeServer {
   std::vector<v1::FinishJobRequest> finishes;
   std::vector<v1::FailJobRequest> failures;
   std::vector<v1::ReleaseJobRequest> releases;
+  // Called by LeaseJob before it answers (outside the lock): a signal that
+  // arrives while the poll is in flight.
+  std::function<void()> on_lease;
 };
 
 // ReportJob: every report is recorded and acknowledged at once (lease valid).
@@ -143,6 +147,7 @@ class FakeWorkerStub final : public v1::WorkerService::StubInterface {
 
   grpc::Status LeaseJob(grpc::ClientContext*, const v1::LeaseJobRequest& request,
                         v1::LeaseJobResponse* response) override {
+    if (server_->on_lease) server_->on_lease();
     std::lock_guard lock(server_->mutex);
     ++server_->lease_calls;
     server_->lease_requests.push_back(request);
@@ -356,6 +361,40 @@ TEST_F(WorkerFakeStubTest, RetriesLeaseJobWhileTheServerIsUnavailable) {
   EXPECT_EQ(conversions, 1);
   std::lock_guard lock(server_->mutex);
   EXPECT_EQ(server_->lease_calls, 3);  // two UNAVAILABLE, then the job
+}
+
+// SIGTERM while the LeaseJob poll is in flight (an idle worker of a
+// cancelled Slurm job): the lease that still arrives goes straight back with
+// ReleaseJob, unrun (no conversion, no report stream), and the worker polls
+// no more. Before the fix it ran the attempt, which stopped at once: the job
+// went attempt 1 -> 2 for nothing.
+TEST_F(WorkerFakeStubTest, StopDuringTheLeasePollHandsTheLeaseBackUnrun) {
+  WorkerOptions limits = options();
+  limits.max_jobs = 0;  // no limit: only the stop ends the loop
+  Worker worker(limits, std::make_unique<FakeWorkerStub>(server_));
+  server_->on_lease = [&worker] { worker.stop(); };
+  ASSERT_EQ(worker.run(), 0);
+  std::lock_guard lock(server_->mutex);
+  EXPECT_EQ(server_->lease_calls, 1);
+  ASSERT_EQ(server_->releases.size(), 1u);
+  EXPECT_EQ(server_->releases.front().lease().lease_token(), server_->job.lease().lease_token());
+  EXPECT_EQ(worker.conversions(), 0);
+  EXPECT_EQ(server_->report_streams, 0);
+  EXPECT_TRUE(server_->reports.empty());
+  EXPECT_TRUE(server_->finishes.empty());
+  EXPECT_TRUE(server_->failures.empty());
+}
+
+// A worker stopped before it polls never calls LeaseJob.
+TEST_F(WorkerFakeStubTest, StoppedWorkerNeverLeases) {
+  WorkerOptions limits = options();
+  limits.max_jobs = 0;
+  Worker worker(limits, std::make_unique<FakeWorkerStub>(server_));
+  worker.stop();
+  ASSERT_EQ(worker.run(), 0);
+  std::lock_guard lock(server_->mutex);
+  EXPECT_EQ(server_->lease_calls, 0);
+  EXPECT_TRUE(server_->releases.empty());
 }
 
 }  // namespace

@@ -207,7 +207,7 @@ void JobService::published(const v1::Job& job) {
   // A child's change appended a ChildUpdate to its study: wake the study's watchers.
   if (job.parent_job_id().empty()) return;
   if (auto parent = parse_job_name(job.parent_job_id())) {
-    if (auto study = store_.get(*parent); study.ok()) notifier_.publish(*parent, study->last_sequence());
+    if (auto sequence = store_.last_sequence(*parent); sequence.ok()) notifier_.publish(*parent, *sequence);
   }
 }
 
@@ -504,13 +504,12 @@ StatusOr<v1::Job> JobService::cancel(const std::string& job_id, const Identity& 
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
   if (Status s = check_visible(*id, caller); !s.ok()) return s;
-  std::vector<std::int64_t> children;
+  std::vector<Store::CancelledChild> children;
   auto job = store_.cancel(*id, "cancelled by the client", now(), &children);
   if (job.ok()) {
-    for (std::int64_t child : children) {
-      remove_uploads(child);
-      if (auto cancelled = store_.get(child); cancelled.ok())
-        notifier_.publish(child, cancelled->last_sequence());
+    for (const Store::CancelledChild& child : children) {
+      if (child.was_running) remove_uploads(child.id);  // a queued child has no upload
+      notifier_.publish(child.id, child.last_sequence);
     }
     remove_uploads(*id);
     published(*job);

@@ -319,10 +319,23 @@ Status roll_up_study(sqlite3* db, std::int64_t child_id, std::int64_t now_ms, bo
     return seq.status();
   }
   if (!conclude) return {};
-  auto study = load_job(db, parent_id);
-  if (!study.ok()) return study.status();
-  if (is_terminal(study->state())) return {};
-  if (study->state() == v1::Job::QUEUED && update.state() != v1::Job::QUEUED) {
+  // The study's state and counts only: its spec (every axis value) is not parsed per child.
+  v1::Job::State study_state = v1::Job::STATE_UNSPECIFIED;
+  int count = 0;
+  int done = 0;
+  {
+    Stmt study(
+        db,
+        "SELECT state, child_count, (SELECT COUNT(*) FROM jobs c WHERE c.parent_id = ?1 AND c.state >= 3) "
+        "FROM jobs WHERE id = ?1");
+    study.bind(1, parent_id);
+    if (study.step() != SQLITE_ROW) return sqlite_error(db, "study");
+    study_state = static_cast<v1::Job::State>(study.int64(0));
+    count = static_cast<int>(study.int64(1));
+    done = static_cast<int>(study.int64(2));
+  }
+  if (is_terminal(study_state)) return {};
+  if (study_state == v1::Job::QUEUED && update.state() != v1::Job::QUEUED) {
     Stmt start(db, "UPDATE jobs SET state = ?, start_ms = COALESCE(start_ms, ?), reason = '' WHERE id = ?");
     start.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms).bind(3, parent_id);
     if (start.step() != SQLITE_DONE) return sqlite_error(db, "study start");
@@ -335,8 +348,6 @@ Status roll_up_study(sqlite3* db, std::int64_t child_id, std::int64_t now_ms, bo
     }
   }
   if (!is_terminal(update.state())) return {};
-  const int count = study->child_count();
-  const int done = study->children_done();
   Stmt progress(db, "UPDATE jobs SET fraction_done = ? WHERE id = ?");
   progress.bind(1, count > 0 ? static_cast<double>(done) / count : 1.0).bind(2, parent_id);
   if (progress.step() != SQLITE_DONE) return sqlite_error(db, "study progress");
@@ -616,6 +627,17 @@ StatusOr<Store::Submitted> Store::submit_study(const v1::JobSpec& study,
   return Submitted{std::move(*job), false};
 }
 
+StatusOr<std::int64_t> Store::last_sequence(std::int64_t job_id) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  Stmt stmt(r.get(), "SELECT last_seq FROM jobs WHERE id = ?");
+  stmt.bind(1, job_id);
+  const int rc = stmt.step();
+  if (rc == SQLITE_DONE) return Status(StatusCode::kNotFound, "job " + job_name(job_id) + " not found");
+  if (rc != SQLITE_ROW) return sqlite_error(r.get(), "last sequence");
+  return stmt.int64(0);
+}
+
 StatusOr<v1::Job> Store::get(std::int64_t job_id) {
   Reader r = reader();
   if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
@@ -651,24 +673,24 @@ std::int64_t Store::count(v1::Job::State state) {
 
 namespace {
 
-// QUEUED or RUNNING -> CANCELLED with its event (inside a write transaction).
-Status cancel_row(sqlite3* db, const v1::Job& job, std::int64_t job_id, const std::string& reason,
-                  std::int64_t now_ms) {
+// QUEUED or RUNNING -> CANCELLED with its event (inside a write transaction);
+// the event's sequence.
+StatusOr<std::int64_t> cancel_row(sqlite3* db, std::int64_t job_id, int attempt, const std::string& worker_id,
+                                  const std::string& reason, std::int64_t now_ms) {
   Stmt update(
       db,
       "UPDATE jobs SET state = ?, lease_token = NULL, lease_expires_ms = NULL, reason = ?, end_ms = ? "
       "WHERE id = ?");
   update.bind(1, static_cast<int>(v1::Job::CANCELLED)).bind(2, reason).bind(3, now_ms).bind(4, job_id);
   if (update.step() != SQLITE_DONE) return sqlite_error(db, "cancel");
-  auto seq = append_event_row(db, job_id, job.attempt(),
-                              state_event(v1::Job::CANCELLED, reason, job.worker_id()), std::nullopt, now_ms);
-  return seq.ok() ? Status() : seq.status();
+  return append_event_row(db, job_id, attempt, state_event(v1::Job::CANCELLED, reason, worker_id),
+                          std::nullopt, now_ms);
 }
 
 }  // namespace
 
 StatusOr<v1::Job> Store::cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms,
-                                std::vector<std::int64_t>* cancelled_children) {
+                                std::vector<CancelledChild>* cancelled_children) {
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
@@ -684,22 +706,30 @@ StatusOr<v1::Job> Store::cancel(std::int64_t job_id, const std::string& reason, 
     // A study: its queued and running children first (each with its
     // ChildUpdate in the study's log), then the study, whose CANCELLED event
     // ends its watchers' streams after the children's.
-    std::vector<std::int64_t> children;
+    std::vector<CancelledChild> children;
+    std::vector<std::pair<int, std::string>> leases;  // attempt, worker
     {
-      Stmt find(writer_, "SELECT id FROM jobs WHERE parent_id = ? AND state IN (1, 2) ORDER BY child_index");
+      Stmt find(writer_,
+                "SELECT id, state, attempt, worker_id FROM jobs WHERE parent_id = ? AND state IN (1, 2) "
+                "ORDER BY child_index");
       find.bind(1, job_id);
-      while (find.step() == SQLITE_ROW) children.push_back(find.int64(0));
+      while (find.step() == SQLITE_ROW) {
+        children.push_back({find.int64(0), 0, find.int64(1) == v1::Job::RUNNING});
+        leases.emplace_back(static_cast<int>(find.int64(2)), find.text(3));
+      }
     }
     const std::string child_reason = reason + " (study " + job->id() + " cancelled)";
-    for (std::int64_t child_id : children) {
-      auto child = load_job(writer_, child_id);
-      if (!child.ok()) return child.status();
-      if (Status s = cancel_row(writer_, *child, child_id, child_reason, now_ms); !s.ok()) return s;
-      if (Status s = roll_up_study(writer_, child_id, now_ms, /*conclude=*/false); !s.ok()) return s;
+    for (std::size_t i = 0; i < children.size(); ++i) {
+      auto seq = cancel_row(writer_, children[i].id, leases[i].first, leases[i].second, child_reason, now_ms);
+      if (!seq.ok()) return seq.status();
+      children[i].last_sequence = *seq;
+      if (Status s = roll_up_study(writer_, children[i].id, now_ms, /*conclude=*/false); !s.ok()) return s;
     }
-    if (cancelled_children) *cancelled_children = children;
+    if (cancelled_children) *cancelled_children = std::move(children);
   }
-  if (Status s = cancel_row(writer_, *job, job_id, reason, now_ms); !s.ok()) return s;
+  if (auto seq = cancel_row(writer_, job_id, job->attempt(), job->worker_id(), reason, now_ms); !seq.ok()) {
+    return seq.status();
+  }
   if (Status s = roll_up_study(writer_, job_id, now_ms); !s.ok()) return s;
   auto updated = load_job(writer_, job_id);
   if (!updated.ok()) return updated.status();

@@ -118,6 +118,8 @@ class Store {
                                    const std::string& owner = "");
 
   StatusOr<v1::Job> get(std::int64_t job_id);
+  // The job's last event sequence (no spec parsed: a study's waking of its watchers).
+  StatusOr<std::int64_t> last_sequence(std::int64_t job_id);
   // Jobs with id > after_id, oldest first, at most `limit`; state 0 = any;
   // owner null = every owner's; parent_id > 0: only that study's children.
   StatusOr<std::vector<v1::Job>> list(std::int64_t after_id, int limit, v1::Job::State state,
@@ -128,9 +130,14 @@ class Store {
   // QUEUED or RUNNING -> CANCELLED (clears the lease); a cancelled job is
   // returned as it is; SUCCEEDED or FAILED gives kFailedPrecondition. A
   // study's queued and running children are cancelled with it, in the same
-  // transaction (their ids in *cancelled_children).
+  // transaction (in *cancelled_children).
+  struct CancelledChild {
+    std::int64_t id = 0;
+    std::int64_t last_sequence = 0;  // its CANCELLED event
+    bool was_running = false;        // it had a lease (and maybe an upload)
+  };
   StatusOr<v1::Job> cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms,
-                           std::vector<std::int64_t>* cancelled_children = nullptr);
+                           std::vector<CancelledChild>* cancelled_children = nullptr);
 
   // Leases the oldest QUEUED job (attempt + 1, fresh token); nullopt if none.
   StatusOr<std::optional<Claim>> claim(const std::string& worker_id, std::int64_t now_ms,

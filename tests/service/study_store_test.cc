@@ -195,11 +195,14 @@ TEST_F(StudyStoreTest, CancellingAStudyCancelsItsQueuedAndRunningChildren) {
   Claim a = claim_one();
   Claim b = claim_one();
   ASSERT_TRUE(store_->finish(*parse_job_name(a.job.id()), a.lease_token, 10, 3000).ok());
-  std::vector<std::int64_t> cancelled;
+  std::vector<Store::CancelledChild> cancelled;
   auto job = store_->cancel(study, "by the client", 4000, &cancelled);
   ASSERT_TRUE(job.ok()) << job.status().to_string();
   EXPECT_EQ(job->state(), v1::Job::CANCELLED);
-  EXPECT_EQ(cancelled.size(), 2u) << "the running and the queued child, not the succeeded one";
+  ASSERT_EQ(cancelled.size(), 2u) << "the running and the queued child, not the succeeded one";
+  EXPECT_TRUE(cancelled[0].was_running);
+  EXPECT_FALSE(cancelled[1].was_running);
+  EXPECT_EQ(cancelled[0].last_sequence, store_->get(cancelled[0].id)->last_sequence());
   EXPECT_EQ(store_->get(*parse_job_name(a.job.id()))->state(), v1::Job::SUCCEEDED);
   EXPECT_EQ(store_->get(*parse_job_name(b.job.id()))->state(), v1::Job::CANCELLED);
   EXPECT_EQ(*store_->check_lease(*parse_job_name(b.job.id()), b.lease_token), LeaseCheck::kCancelled)

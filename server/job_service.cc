@@ -563,6 +563,12 @@ Status JobService::download(const std::string& job_id,
   if (!job.ok()) return job.status();
   const fs::path path = result_path(*id);
   std::ifstream in(path, std::ios::binary);
+  if (!in && job->child_count() > 0) {
+    return {StatusCode::kNotFound, job->id() + " is a study: each of its " +
+                                       std::to_string(job->child_count()) +
+                                       " children has a result (cellflow list --parent " + job->id() +
+                                       "; cellflow plot " + job->id() + ")"};
+  }
   if (!in) {
     return {StatusCode::kNotFound,
             job->id() + " has no result file (state " + v1::Job::State_Name(job->state()) + ")"};

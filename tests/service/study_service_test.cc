@@ -3,7 +3,8 @@
 // three compression points (E = 500, 1000, 2000 Pa); both workers lease its
 // children, the study ends SUCCEEDED with every child's result, and the
 // force scales with E. Then list/plot of the study, a cancelled study whose
-// watch ends CANCELLED, and `submit --set` / `submit shear-flow`.
+// watch ends CANCELLED, and `submit --set` / `submit shear-flow`; a flow
+// sweep whose plot draws steady D against the swept value.
 #include <cmath>
 #include <set>
 
@@ -156,6 +157,42 @@ TEST_F(ServiceTest, SweepRunsOnEveryWorkerAndForceScalesWithE) {
   v1::Job ignored;
   ASSERT_TRUE(client_->cancel(flow_job.id(), &ignored).ok() ||
               get(flow_job.id()).state() == v1::Job::SUCCEEDED);
+}
+
+// A flow sweep over Ca: two tiny flows (300 vertices, 3 cells per radius, to
+// strain 1), the study SUCCEEDED, and plot STUDY draws steady D against Ca
+// beside Roscoe; a sweep over another field draws D against that field.
+TEST_F(ServiceTest, FlowSweepPlotsSteadyDeformationAgainstTheSweptValue) {
+  start_server(2);
+  const std::string cli = std::string(CELLFLOW_CLI_EXE) + " --server " + address_;
+  const std::string base = (dir_ / "flow.json").string();
+  std::ofstream(base) << R"({"shearFlow": {"cell": {"radiusM": 4e-6, "material": {"youngsModulusPa": 50,
+      "poissonRatio": 0.45}, "targetVertexCount": 300}, "capillaryNumber": 0.1, "numerics": {"cellsPerRadius": 3,
+      "boxXRadii": 5, "boxYRadii": 6, "boxZRadii": 4, "maxStrain": 1, "sampleEveryStrain": 0.1,
+      "snapshotEveryStrain": 0}}})";
+  int code = 0;
+  const std::string out =
+      run_command(cli + " sweep --spec " + base + " --set shearFlow.capillaryNumber=0.05,0.2 --watch", &code);
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_EQ(get("job-1").state(), v1::Job::SUCCEEDED);
+  const std::string svg = (dir_ / "d_ca.svg").string();
+  const std::string plotted = run_command(cli + " plot job-1 -o " + svg, &code);
+  ASSERT_EQ(code, 0) << plotted;
+  EXPECT_EQ(count_of(plotted, "steady D "), 2) << plotted;
+  const std::string text = read_text(svg);
+  EXPECT_NE(text.find("Roscoe"), std::string::npos) << "swept over Ca: beside Roscoe";
+  EXPECT_NE(text.find("capillary number"), std::string::npos);
+
+  const std::string radii =
+      run_command(cli + " sweep --spec " + base + " --set shearFlow.cell.radiusM=3e-6,4e-6 --watch", &code);
+  ASSERT_EQ(code, 0) << radii;
+  const std::string radius_svg = (dir_ / "d_r.svg").string();
+  const std::string radius_plot = run_command(cli + " plot job-4 -o " + radius_svg, &code);
+  ASSERT_EQ(code, 0) << radius_plot;
+  const std::string radius_text = read_text(radius_svg);
+  EXPECT_NE(radius_text.find("shearFlow.cell.radiusM"), std::string::npos)
+      << "the swept path labels the x axis";
+  EXPECT_EQ(radius_text.find("Roscoe"), std::string::npos);
 }
 
 }  // namespace

@@ -35,48 +35,6 @@ constexpr Column kColumns[] = {
     {"volume_m3", "volume_m3", 0, false},
 };
 
-// A line plot with both axes from 0, nice ticks, a grid, labels and a legend.
-std::string plot_svg(const std::string& title, const std::string& x_label, const std::string& y_label,
-                     const std::vector<PlotSeries>& series, double x_hint, double y_hint) {
-  const PlotFrame frame = frame_with_legend(series);
-  double x_min = 0.0, x_max = x_hint, y_min = 0.0, y_max = y_hint;
-  for (const PlotSeries& s : series) {
-    for (const auto& [x, y] : s.points) {
-      if (std::isfinite(x)) x_min = std::min(x_min, x), x_max = std::max(x_max, x);
-      if (std::isfinite(y)) y_min = std::min(y_min, y), y_max = std::max(y_max, y);
-    }
-  }
-  const PlotAxis xa = nice_axis(x_min, x_max > x_min ? x_max : x_min + 1.0);
-  const PlotAxis ya = nice_axis(y_min, y_max > y_min ? y_max : y_min + 1.0);
-  auto px = [&](double x) { return frame.x_of(xa, x); };
-  auto py = [&](double y) { return frame.y_of(ya, y); };
-
-  std::string svg = svg_open(frame, title);
-  svg += svg_axes(frame, xa.ticks, ya.ticks, px, py, x_label, y_label);
-
-  for (const PlotSeries& s : series) {
-    if (s.line && s.points.size() > 1) {
-      std::string points;
-      for (const auto& [x, y] : s.points) points += fixed(px(x), 2) + "," + fixed(py(y), 2) + " ";
-      svg += "<polyline fill=\"none\" " + svg_stroke(s) + " points=\"" + points + "\"/>\n";
-    }
-    if (s.markers) {
-      for (std::size_t i = 0; i < s.points.size(); ++i) {
-        const bool hollow = i < s.hollow.size() && s.hollow[i];
-        svg += "<circle cx=\"" + fixed(px(s.points[i].first), 2) + "\" cy=\"" +
-               fixed(py(s.points[i].second), 2) + "\" r=\"" + (s.line ? "3" : "4") + "\" " +
-               (hollow ? "fill=\"white\" stroke=\"" + s.color + "\" stroke-width=\"1.5\""
-                       : "fill=\"" + s.color + "\"") +
-               "/>\n";
-      }
-    }
-  }
-  // Legend right of the plotting area, off the data.
-  svg += svg_legend(frame, series);
-  svg += "</svg>\n";
-  return svg;
-}
-
 constexpr const char* kSimulation = "#1f77b4";
 constexpr const char* kTheory = "#d62728";
 constexpr const char* kTable = "#2ca02c";

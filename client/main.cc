@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -19,6 +20,7 @@
 #include "client/output_file.h"
 #include "client/rpc_client.h"
 #include "client/spec_arg.h"
+#include "client/study_output.h"
 #include "client/suggest.h"
 #include "client/version.h"
 #include "client/watch_printer.h"
@@ -69,6 +71,10 @@ std::string scene_of(const v1::JobSpec& spec) {
 void print_job(const v1::Job& job) {
   std::printf("%s  %s  %s  attempt %d  %.0f%%", job.id().c_str(), v1::Job::State_Name(job.state()).c_str(),
               scene_of(job.spec()).c_str(), job.attempt(), 100.0 * job.fraction_done());
+  if (job.child_count() > 0)
+    std::printf("  study: %d/%d children done", job.children_done(), job.child_count());
+  if (!job.parent_job_id().empty())
+    std::printf("  child %d of %s", job.child_index(), job.parent_job_id().c_str());
   if (!job.spec().name().empty()) std::printf("  \"%s\"", job.spec().name().c_str());
   if (!job.reason().empty()) std::printf("  reason: %s", job.reason().c_str());
   std::printf("\n");
@@ -104,6 +110,9 @@ struct CellFlags {
 int watch(client::Client& client, const std::string& job_id, std::int64_t after, bool quiet) {
   const bool terminal = ::isatty(STDOUT_FILENO) != 0;
   client::WatchPrinter printer(stdout, terminal);
+  // A study: the bar counts its children (ChildUpdate events).
+  if (v1::Job job; client.get(job_id, &job).ok() && job.child_count() > 0)
+    printer.set_child_count(job.child_count());
   const grpc::Status status = client.watch(job_id, after, [&](const v1::JobEvent& event) {
     if (!quiet || event.has_state_change()) printer.print(event);
     return true;
@@ -335,6 +344,101 @@ int run_fit(client::Client& client, CLI::App* app, const FitFlags& flags) {
   return ExitCode::kExitOk;
 }
 
+// The children of study `study_id`, in point order (every page).
+grpc::Status list_children(client::Client& client, const std::string& study_id,
+                           std::vector<v1::Job>* children) {
+  v1::ListJobsRequest request;
+  request.set_parent_job_id(study_id);
+  request.set_page_size(1000);
+  do {
+    v1::ListJobsResponse response;
+    const grpc::Status status = client.list(request, &response);
+    if (!status.ok()) return status;
+    for (const auto& job : response.jobs()) children->push_back(job);
+    request.set_page_token(response.next_page_token());
+  } while (!request.page_token().empty());
+  std::sort(children->begin(), children->end(),
+            [](const v1::Job& a, const v1::Job& b) { return a.child_index() < b.child_index(); });
+  return grpc::Status::OK;
+}
+
+// "youngsModulusPa=1000, maxDeformation=0.2": a child's point, the last part of each path.
+std::string point_label(const v1::StudySpec& study, int child_index) {
+  std::string label;
+  for (int a = 0; a < study.axes_size(); ++a) {
+    const std::string& path = study.axes(a).path();
+    const int k = client::study_value_index(study, child_index, a);
+    if (k < 0 || k >= study.axes(a).values_size()) continue;
+    label += (label.empty() ? "" : ", ") + path.substr(path.rfind('.') + 1) + "=" + study.axes(a).values(k);
+  }
+  return label;
+}
+
+// `cellflow plot STUDY`: the children's force curves overlaid (quasi-static)
+// or their steady D against the first axis' value (shear flow).
+int plot_study(client::Client& client, const v1::Job& study_job, const std::string& output) {
+  const v1::StudySpec& study = study_job.spec().study();
+  std::vector<v1::Job> children;
+  if (grpc::Status status = list_children(client, study_job.id(), &children); !status.ok())
+    return report_error(status, "list children of " + study_job.id());
+  std::vector<client::LabelledCurve> curves;
+  std::vector<client::SweptSteadyPoint> swept;
+  std::vector<client::SteadyPoint> by_ca;
+  const std::string first_path = study.axes_size() > 0 ? study.axes(0).path() : "";
+  const bool against_ca = first_path.ends_with("capillaryNumber") || first_path.ends_with("capillary_number");
+  bool flow = false;
+  for (const v1::Job& child : children) {
+    if (child.state() != v1::Job::SUCCEEDED) {
+      std::fprintf(stderr, "cellflow: %s (point %d) is %s: not plotted\n", child.id().c_str(),
+                   child.child_index(), v1::Job::State_Name(child.state()).c_str());
+      continue;
+    }
+    TemporaryResult temporary;
+    temporary.path =
+        (fs::temp_directory_path() / ("cellflow-" + child.id() + "-" + std::to_string(::getpid()) + ".h5"))
+            .string();
+    if (grpc::Status status = client.download(child.id(), temporary.path); !status.ok())
+      return report_error(status, "result " + child.id());
+    const std::string label = point_label(study, child.child_index());
+    if (client::is_flow_result(temporary.path)) {
+      flow = true;
+      auto point = client::read_steady_point(temporary.path, label);
+      if (!point.ok()) {
+        std::fprintf(stderr, "cellflow: %s: %s\n", child.id().c_str(), point.status().to_string().c_str());
+        return ExitCode::kExitNotFound;
+      }
+      const int k = client::study_value_index(study, child.child_index(), 0);
+      const double value = std::strtod(study.axes(0).values(k).c_str(), nullptr);
+      swept.push_back({value, point->steady_taylor_deformation, point->stop == "steady"});
+      by_ca.push_back(*point);
+      std::printf("%s  %s  steady D %.6g  (%s)\n", child.id().c_str(), label.c_str(),
+                  point->steady_taylor_deformation, point->stop.c_str());
+    } else {
+      auto curve = client::read_curve(temporary.path);
+      if (!curve.ok()) {
+        std::fprintf(stderr, "cellflow: %s: %s\n", child.id().c_str(), curve.status().to_string().c_str());
+        return ExitCode::kExitNotFound;
+      }
+      curves.push_back({label, std::move(*curve)});
+    }
+  }
+  if (curves.empty() && swept.empty()) {
+    std::fprintf(stderr, "cellflow: %s has no succeeded child to plot\n", study_job.id().c_str());
+    return ExitCode::kExitNotFound;
+  }
+  const std::string title =
+      study_job.id() + " (study of " + std::to_string(study_job.child_count()) + " children)";
+  const std::string text = !flow        ? client::curves_overlay_svg(curves, title)
+                           : against_ca ? client::steady_deformation_svg(by_ca, title)
+                                        : client::swept_steady_svg(swept, first_path, title);
+  if (!client::write_output(output, text)) {
+    std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
+    return ExitCode::kExitUsage;
+  }
+  if (!client::is_stdout_name(output)) std::printf("%s\n", output.c_str());
+  return ExitCode::kExitOk;
+}
+
 // After a parse error: the first word of the command line that names no
 // subcommand or option where it stands, and the known one nearest it
 // ("unknown subcommand 'lsit'; did you mean 'list'?"); "" when every word is
@@ -476,6 +580,13 @@ int main(int argc, char** argv) {
   submit->add_option("--name", name, "a name for the job");
   submit->add_flag("--watch", submit_watch, "follow the job until it ends; exit with its state's code");
   submit->add_flag("--json", print_json, "print the job as JSON");
+  std::vector<std::string> submit_sets;
+  submit
+      ->add_option("--set", submit_sets,
+                   "PATH=VALUE: set a field of the spec before submitting (protobuf JSON path, e.g. "
+                   "compression.loadPoints=20; repeatable)")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   submit->require_subcommand(0, 1);
   submit->fallthrough();
 
@@ -498,6 +609,53 @@ int main(int argc, char** argv) {
       ->required();
   indentation->add_option("--load-points", indentation_points, "points of the curve (server default 40)");
 
+  CellFlags flow_cell;
+  double capillary_number = 0, shear_rate_per_s = 0, fluid_viscosity_pa_s = 0, fluid_density_kg_m3 = 0;
+  double cells_per_radius = 0, max_strain = 0, max_time_s = 0, sample_every_strain = 0;
+  bool fluid_snapshots = false;
+  auto* shear_flow = submit->add_subcommand("shear-flow", "a cell in plane shear flow (paper section 7.1)");
+  flow_cell.add(shear_flow);
+  auto* ca_option = shear_flow->add_option("--capillary-number", capillary_number,
+                                           "Ca = eta gammadot / mu (paper eq. 17), in [1e-6, 100]");
+  auto* rate_option = shear_flow->add_option("--shear-rate-per-s", shear_rate_per_s,
+                                             "shear rate gammadot in 1/s (instead of Ca)");
+  ca_option->excludes(rate_option);
+  shear_flow->add_option("--fluid-viscosity-pa-s", fluid_viscosity_pa_s, "eta (server default 1e-3, water)");
+  shear_flow->add_option("--fluid-density-kg-m3", fluid_density_kg_m3, "rho (server default 1000)");
+  shear_flow->add_option("--cells-per-radius", cells_per_radius,
+                         "lattice resolution R / dx (server default 6)");
+  shear_flow->add_option("--max-strain", max_strain, "stop at this strain gammadot t (server default 40)");
+  shear_flow->add_option("--max-time-s", max_time_s,
+                         "stop at this simulated time (server default: no limit)");
+  shear_flow->add_option("--sample-every-strain", sample_every_strain,
+                         "a deformation sample every this much strain (server default 0.1)");
+  shear_flow->add_flag("--fluid-snapshots", fluid_snapshots, "keep the fluid velocity at the snapshots");
+
+  // sweep
+  std::string sweep_spec_file;
+  std::vector<std::string> sweep_sets;
+  bool sweep_zip = false;
+  auto* sweep = app.add_subcommand(
+      "sweep",
+      "submit one study: a base spec expanded over --set PATH=V1,V2,... (the outer product of the axes; "
+      "--zip: "
+      "taken together); any worker runs its children; watch, cancel, list and plot it as one job");
+  sweep->add_option("--spec", sweep_spec_file, "the base job spec as JSON: a file, - for stdin, or '{...}'")
+      ->required();
+  sweep
+      ->add_option("--set", sweep_sets,
+                   "PATH=V1,V2,...: sweep a field of the base spec (protobuf JSON path, e.g. "
+                   "shearFlow.capillaryNumber=0.05,0.1,0.2; repeatable: one axis each)")
+      ->required()
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  sweep->add_flag("--zip", sweep_zip,
+                  "take the axes together point by point (equal lengths) instead of the grid");
+  sweep->add_option("--request-id", request_id, "idempotency key: the same id twice gives the same study");
+  sweep->add_option("--name", name, "a name for the study");
+  sweep->add_flag("--watch", submit_watch, "follow the study until its last child ends");
+  sweep->add_flag("--json", print_json, "print the study as JSON");
+
   // watch, get, list, cancel, result, plot
   std::string job_id, output;
   std::int64_t after_sequence = 0;
@@ -517,6 +675,8 @@ int main(int argc, char** argv) {
   list->add_option("--state", state_name, "only jobs in this state")
       ->check(CLI::IsMember({"QUEUED", "RUNNING", "SUCCEEDED", "FAILED", "CANCELLED"}, CLI::ignore_case));
   list->add_option("--page-size", page_size, "jobs per request");
+  std::string list_parent;
+  list->add_option("--parent", list_parent, "only the children of this study");
   bool list_json = false;
   list->add_flag("--json", list_json,
                  "print the jobs as one JSON array (protobuf JSON mapping of cellflow.v1.Job)");
@@ -603,7 +763,7 @@ int main(int argc, char** argv) {
   if (submit->parsed()) {
     v1::SubmitJobRequest request;
     if (!spec_file.empty()) {
-      if (compression->parsed() || indentation->parsed()) {
+      if (compression->parsed() || indentation->parsed() || shear_flow->parsed()) {
         std::fprintf(stderr, "cellflow: give either --spec or a scene, not both\n");
         return ExitCode::kExitUsage;
       }
@@ -630,11 +790,37 @@ int main(int argc, char** argv) {
       spec->set_probe_radius_m(probe_radius_m);
       spec->set_max_indentation_m(max_indentation_m);
       if (indentation->count("--load-points")) spec->set_load_points(indentation_points);
+    } else if (shear_flow->parsed()) {
+      if (!shear_flow->count("--capillary-number") && !shear_flow->count("--shear-rate-per-s")) {
+        std::fprintf(stderr, "cellflow: submit shear-flow needs --capillary-number or --shear-rate-per-s\n");
+        return ExitCode::kExitUsage;
+      }
+      auto* spec = request.mutable_spec()->mutable_shear_flow();
+      flow_cell.fill(shear_flow, spec->mutable_cell());
+      if (shear_flow->count("--capillary-number")) spec->set_capillary_number(capillary_number);
+      if (shear_flow->count("--shear-rate-per-s")) spec->set_shear_rate_per_s(shear_rate_per_s);
+      if (shear_flow->count("--fluid-viscosity-pa-s")) spec->set_fluid_viscosity_pa_s(fluid_viscosity_pa_s);
+      if (shear_flow->count("--fluid-density-kg-m3")) spec->set_fluid_density_kg_m3(fluid_density_kg_m3);
+      auto* numerics = spec->mutable_numerics();
+      if (shear_flow->count("--cells-per-radius")) numerics->set_cells_per_radius(cells_per_radius);
+      if (shear_flow->count("--max-strain")) numerics->set_max_strain(max_strain);
+      if (shear_flow->count("--max-time-s")) numerics->set_max_time_s(max_time_s);
+      if (shear_flow->count("--sample-every-strain")) numerics->set_sample_every_strain(sample_every_strain);
+      if (fluid_snapshots) numerics->set_fluid_snapshots(true);
     } else {
-      std::fprintf(
-          stderr,
-          "cellflow: submit needs --spec FILE.json|-|'{...}' or a scene (compression, indentation)\n");
+      std::fprintf(stderr,
+                   "cellflow: submit needs --spec FILE.json|-|'{...}' or a scene (compression, indentation, "
+                   "shear-flow)\n");
       return ExitCode::kExitUsage;
+    }
+    // --set edits the spec with the parser of the server: a wrong path or value names the --set.
+    for (const std::string& set : submit_sets) {
+      StatusOr<v1::JobSpec> edited = client::apply_set(request.spec(), set);
+      if (!edited.ok()) {
+        std::fprintf(stderr, "cellflow: %s\n", edited.status().message().c_str());
+        return ExitCode::kExitInvalidArgument;
+      }
+      *request.mutable_spec() = std::move(*edited);
     }
     if (!name.empty()) request.mutable_spec()->set_name(name);
     if (const int uploaded = upload_mesh_file(client, *request.mutable_spec()); uploaded != ExitCode::kExitOk)
@@ -649,6 +835,46 @@ int main(int argc, char** argv) {
     } else {
       std::printf("%s%s\n", response.job().id().c_str(),
                   response.already_existed() ? " (already submitted)" : "");
+    }
+    std::fflush(stdout);
+    if (submit_watch) return watch(client, response.job().id(), 0, false);
+    return ExitCode::kExitOk;
+  }
+
+  if (sweep->parsed()) {
+    const client::SpecText text = client::read_spec_arg(sweep_spec_file, std::cin);
+    if (!text.error.empty()) {
+      std::fprintf(stderr, "cellflow: %s\n", text.error.c_str());
+      return ExitCode::kExitUsage;
+    }
+    StatusOr<v1::JobSpec> base = jobs::job_spec_from_json(text.text);
+    if (!base.ok()) {
+      std::fprintf(stderr, "cellflow: %s: %s\n", text.source.c_str(), base.status().message().c_str());
+      return ExitCode::kExitInvalidArgument;
+    }
+    if (const int uploaded = upload_mesh_file(client, *base); uploaded != ExitCode::kExitOk) return uploaded;
+    v1::SubmitJobRequest request;
+    v1::StudySpec* study = request.mutable_spec()->mutable_study();
+    *study->mutable_base() = std::move(*base);
+    for (const std::string& set : sweep_sets) {
+      StatusOr<v1::StudyAxis> axis = client::parse_set_axis(set);
+      if (!axis.ok()) {
+        std::fprintf(stderr, "cellflow: %s\n", axis.status().message().c_str());
+        return ExitCode::kExitUsage;
+      }
+      *study->add_axes() = std::move(*axis);
+    }
+    study->set_combination(sweep_zip ? v1::StudySpec::ZIP : v1::StudySpec::GRID);
+    request.mutable_spec()->set_name(name.empty() ? study->base().name() : name);
+    request.set_request_id(request_id.empty() ? random_request_id() : request_id);
+    v1::SubmitJobResponse response;
+    const grpc::Status status = client.submit(request, &response);
+    if (!status.ok()) return report_error(status, "sweep");
+    if (print_json) {
+      std::printf("%s\n", to_json(response.job()).c_str());
+    } else {
+      std::printf("%s%s (%d children)\n", response.job().id().c_str(),
+                  response.already_existed() ? " (already submitted)" : "", response.job().child_count());
     }
     std::fflush(stdout);
     if (submit_watch) return watch(client, response.job().id(), 0, false);
@@ -687,6 +913,7 @@ int main(int argc, char** argv) {
       request.set_state(state);
     }
     request.set_page_size(page_size);
+    request.set_parent_job_id(list_parent);
     // Every page fetched before anything is printed: an error leaves no half list.
     std::vector<v1::Job> jobs;
     do {
@@ -733,6 +960,12 @@ int main(int argc, char** argv) {
       return ExitCode::kExitUsage;
     }
     job_id = plot_jobs.front();
+    if (against.empty()) {
+      v1::Job job;
+      if (const grpc::Status status = client.get(job_id, &job); !status.ok())
+        return report_error(status, "get " + job_id);
+      if (job.spec().has_study()) return plot_study(client, job, output);
+    }
   }
 
   if (plot->parsed() && !against.empty()) {

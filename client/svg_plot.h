@@ -96,4 +96,10 @@ std::string svg_legend(const PlotFrame& frame, const std::vector<PlotSeries>& se
 // sample, marker and label (the box around them is the caller's).
 std::string svg_legend_entries(double lx, double ly, const std::vector<PlotSeries>& series);
 
+// A whole plot of `series`: both axes from 0 (or below, for negative data)
+// to past the data and the hints, nice ticks, grid, labels, the series'
+// lines and markers (hollow where asked) and the legend off the data.
+std::string plot_svg(const std::string& title, const std::string& x_label, const std::string& y_label,
+                     const std::vector<PlotSeries>& series, double x_hint, double y_hint);
+
 }  // namespace cellflow::client

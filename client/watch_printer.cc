@@ -64,6 +64,13 @@ std::string event_line(const v1::JobEvent& event) {
               " tank_treading_per_s=" + format("%.6g", s.tank_treading_frequency_per_s());
       break;
     }
+    case v1::JobEvent::kChildUpdate: {
+      const auto& c = event.child_update();
+      line += "child " + c.child_job_id() + " index=" + std::to_string(c.child_index()) + " state " +
+              v1::Job::State_Name(c.state());
+      if (!c.reason().empty()) line += " reason=\"" + c.reason() + "\"";
+      break;
+    }
     case v1::JobEvent::KIND_NOT_SET:
       line += "unknown";
       break;
@@ -106,6 +113,17 @@ void WatchPrinter::print(const v1::JobEvent& event) {
     bar_shown_ = true;
     std::fflush(out_);
     return;
+  }
+  // A study: the bar counts its children in a terminal state.
+  if (event.has_child_update() && child_count_ > 0) {
+    const v1::Job::State state = event.child_update().state();
+    if (state == v1::Job::SUCCEEDED || state == v1::Job::FAILED || state == v1::Job::CANCELLED)
+      ++children_done_;
+    if (terminal_) {
+      bar_ = progress_bar(
+          static_cast<double>(children_done_) / child_count_, -1.0,
+          "children " + std::to_string(children_done_) + "/" + std::to_string(child_count_) + " done");
+    }
   }
   clear_bar();
   std::fprintf(out_, "%s\n", event_line(event).c_str());

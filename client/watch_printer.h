@@ -22,6 +22,10 @@ class WatchPrinter {
   void print(const v1::JobEvent& event);
   // Ends the progress bar line on a terminal.
   void finish();
+  // Watching a study of `count` children: the bar counts children done
+  // (ChildUpdate events to a terminal state) instead of progress events.
+  void set_child_count(int count) { child_count_ = count; }
+  int children_done() const { return children_done_; }
   v1::Job::State last_state() const { return last_state_; }
   std::int64_t last_sequence() const { return last_sequence_; }
 
@@ -33,6 +37,8 @@ class WatchPrinter {
   std::string bar_;
   v1::Job::State last_state_ = v1::Job::STATE_UNSPECIFIED;
   std::int64_t last_sequence_ = 0;
+  int child_count_ = 0;
+  int children_done_ = 0;
 };
 
 }  // namespace cellflow::client

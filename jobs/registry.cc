@@ -35,6 +35,11 @@ const SceneEntry* find_scene(const v1::JobSpec& spec) {
 
 StatusOr<std::unique_ptr<PreparedJob>> SceneRegistry::prepare(const v1::JobSpec& spec) const {
   const SceneEntry* entry = find_scene(spec);
+  if (spec.has_study()) {
+    return invalid_argument(
+        "study: a study is expanded by the server into one job per point (cellflow sweep); a worker or "
+        "cellflow-run runs one scene");
+  }
   if (entry == nullptr) {
     std::string names;
     for (const SceneEntry& e : kScenes) names += (names.empty() ? "" : ", ") + std::string(e.name);

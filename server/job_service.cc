@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "jobs/registry.h"
+#include "jobs/study/study.h"
 #include "server/encoding.h"
 
 namespace cellflow::server {
@@ -117,19 +118,28 @@ std::string sanitize_text(const std::string& text, std::size_t max_bytes) {
   return out;
 }
 
-std::string encode_page_token(std::int64_t after_id, v1::Job::State state) {
-  return base64url("v1:" + std::to_string(after_id) + ":" + std::to_string(static_cast<int>(state)));
+std::string encode_page_token(std::int64_t after_id, v1::Job::State state, std::int64_t parent_id) {
+  std::string text = "v1:" + std::to_string(after_id) + ":" + std::to_string(static_cast<int>(state));
+  if (parent_id > 0) text += ":" + std::to_string(parent_id);
+  return base64url(text);
 }
 
-StatusOr<std::int64_t> decode_page_token(const std::string& token, v1::Job::State state) {
+StatusOr<std::int64_t> decode_page_token(const std::string& token, v1::Job::State state,
+                                         std::int64_t parent_id) {
   auto text = unbase64url(token);
   long long after = 0;
   int token_state = 0;
-  if (!text || std::sscanf(text->c_str(), "v1:%lld:%d", &after, &token_state) != 2 || after < 0) {
+  long long token_parent = 0;
+  const int fields =
+      text ? std::sscanf(text->c_str(), "v1:%lld:%d:%lld", &after, &token_state, &token_parent) : 0;
+  if (fields < 2 || after < 0) {
     return invalid_argument("page_token: not a token this server issued");
   }
   if (token_state != static_cast<int>(state)) {
     return invalid_argument("page_token: belongs to a listing with another state filter");
+  }
+  if ((fields == 3 ? token_parent : 0) != parent_id) {
+    return invalid_argument("page_token: belongs to a listing with another parent_job_id filter");
   }
   return static_cast<std::int64_t>(after);
 }
@@ -194,6 +204,11 @@ fs::path JobService::upload_path(const v1::Lease& lease) const {
 
 void JobService::published(const v1::Job& job) {
   if (auto id = parse_job_name(job.id())) notifier_.publish(*id, job.last_sequence());
+  // A child's change appended a ChildUpdate to its study: wake the study's watchers.
+  if (job.parent_job_id().empty()) return;
+  if (auto parent = parse_job_name(job.parent_job_id())) {
+    if (auto sequence = store_.last_sequence(*parent); sequence.ok()) notifier_.publish(*parent, *sequence);
+  }
 }
 
 Status JobService::check_visible(std::int64_t id, const Identity& caller) {
@@ -299,15 +314,18 @@ Status JobService::delete_job(const std::string& job_id, const Identity& caller)
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
   if (Status s = check_visible(*id, caller); !s.ok()) return s;
-  if (Status s = store_.delete_job(*id); !s.ok()) return s;
-  std::error_code error;
-  fs::remove(result_path(*id), error);
-  remove_uploads(*id);
-  {
+  std::vector<std::int64_t> children;
+  if (Status s = store_.delete_job(*id, &children); !s.ok()) return s;
+  children.push_back(*id);
+  for (std::int64_t removed : children) {
+    std::error_code error;
+    fs::remove(result_path(removed), error);
+    remove_uploads(removed);
     std::lock_guard lock(sample_bounds_mutex_);
-    sample_bounds_.erase(*id);
+    sample_bounds_.erase(removed);
   }
-  spdlog::info("{} deleted", job_name(*id));
+  spdlog::info("{} deleted{}", job_name(*id),
+               children.size() > 1 ? " with its " + std::to_string(children.size() - 1) + " children" : "");
   return {};
 }
 
@@ -346,6 +364,7 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
     return invalid_argument("request_id: at most " + std::to_string(options_.max_request_id_length) +
                             " characters");
   }
+  if (request.spec().has_study()) return submit_study(request, caller);
   // One conversion: validation and the memory estimate read the same parameters.
   auto prepared = prepare_submitted(request.spec());
   if (!prepared.ok()) return prepared.status();
@@ -376,6 +395,72 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
   return response;
 }
 
+StatusOr<v1::SubmitJobResponse> JobService::submit_study(const v1::SubmitJobRequest& request,
+                                                         const Identity& caller) {
+  const v1::JobSpec& spec = request.spec();
+  if (spec.name().size() > options_.max_name_bytes) {
+    return invalid_argument("name: " + std::to_string(spec.name().size()) + " bytes; at most " +
+                            std::to_string(options_.max_name_bytes));
+  }
+  // A repeated request returns its study before anything is expanded.
+  if (!request.request_id().empty()) {
+    auto existing = store_.submit_study(spec, {}, request.request_id(), now(), caller.user);
+    if (existing.ok() && existing->existed) {
+      v1::SubmitJobResponse response;
+      *response.mutable_job() = std::move(existing->job);
+      response.set_already_existed(true);
+      return response;
+    }
+  }
+  auto points = jobs::expand_study(spec.study(), options_.max_study_points);
+  if (!points.ok()) return points.status();
+  // Every child validated and memory-checked before anything is queued.
+  std::vector<Store::StudyChild> children;
+  std::vector<std::int64_t> bounds;
+  children.reserve(points->size());
+  const std::string base_name = spec.study().base().name().empty() ? spec.name() : spec.study().base().name();
+  for (std::size_t i = 0; i < points->size(); ++i) {
+    jobs::StudyPoint& point = (*points)[i];
+    std::string where;
+    for (int a = 0; a < spec.study().axes_size(); ++a) {
+      where += (a == 0 ? "" : ", ") + std::string("study.axes[") + std::to_string(a) + "].values[" +
+               std::to_string(point.value_index[static_cast<std::size_t>(a)]) + "]";
+    }
+    where += " (" + point.label + ")";
+    point.spec.set_name(sanitize_text((base_name.empty() ? "" : base_name + " ") + "[" + point.label + "]",
+                                      options_.max_name_bytes));
+    auto prepared = prepare_submitted(point.spec);
+    if (!prepared.ok()) return Status(prepared.status().code(), where + ": " + prepared.status().message());
+    const std::int64_t memory = (*prepared)->memory_bytes();
+    if (options_.memory_limit_bytes > 0 && memory > options_.memory_limit_bytes) {
+      return Status(StatusCode::kResourceExhausted,
+                    where + ": the job needs an estimated " + std::to_string(memory >> 20) +
+                        " MiB, over this server's limit of " +
+                        std::to_string(options_.memory_limit_bytes >> 20) + " MiB (--memory-limit-bytes)");
+    }
+    bounds.push_back((*prepared)->max_sample_index());
+    children.push_back({std::move(point.spec), memory});
+  }
+  auto submitted = store_.submit_study(spec, children, request.request_id(), now(), caller.user);
+  if (!submitted.ok()) return submitted.status();
+  if (!submitted->existed) {
+    if (auto id = parse_job_name(submitted->job.id())) {
+      // Children have the ids after the study's, in point order (one transaction).
+      std::lock_guard lock(sample_bounds_mutex_);
+      for (std::size_t i = 0; i < bounds.size(); ++i)
+        sample_bounds_[*id + 1 + static_cast<std::int64_t>(i)] = bounds[i];
+    }
+    published(submitted->job);
+    notifier_.queue_changed();
+    spdlog::info("{} queued: a study of {} children{}", submitted->job.id(), children.size(),
+                 request.request_id().empty() ? "" : " (request " + request.request_id() + ")");
+  }
+  v1::SubmitJobResponse response;
+  *response.mutable_job() = std::move(submitted->job);
+  response.set_already_existed(submitted->existed);
+  return response;
+}
+
 StatusOr<v1::Job> JobService::get(const std::string& job_id, const Identity& caller) {
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
@@ -389,12 +474,20 @@ StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& reque
   const int page_size = request.page_size() == 0 ? options_.default_page_size
                                                  : std::min(request.page_size(), options_.max_page_size);
   std::int64_t after = 0;
+  std::int64_t parent = 0;
+  if (!request.parent_job_id().empty()) {
+    auto id = parse_id(request.parent_job_id(), "parent_job_id");
+    if (!id.ok()) return id.status();
+    if (Status s = check_visible(*id, caller); !s.ok()) return s;
+    parent = *id;
+  }
   if (!request.page_token().empty()) {
-    auto decoded = decode_page_token(request.page_token(), request.state());
+    auto decoded = decode_page_token(request.page_token(), request.state(), parent);
     if (!decoded.ok()) return decoded.status();
     after = *decoded;
   }
-  auto jobs = store_.list(after, page_size + 1, request.state(), caller.admin ? nullptr : &caller.user);
+  auto jobs =
+      store_.list(after, page_size + 1, request.state(), caller.admin ? nullptr : &caller.user, parent);
   if (!jobs.ok()) return jobs.status();
   v1::ListJobsResponse response;
   const bool more = static_cast<int>(jobs->size()) > page_size;
@@ -402,7 +495,7 @@ StatusOr<v1::ListJobsResponse> JobService::list(const v1::ListJobsRequest& reque
   for (auto& job : *jobs) *response.add_jobs() = std::move(job);
   if (more) {
     const auto last = parse_job_name(response.jobs(response.jobs_size() - 1).id());
-    response.set_next_page_token(encode_page_token(last.value_or(0), request.state()));
+    response.set_next_page_token(encode_page_token(last.value_or(0), request.state(), parent));
   }
   return response;
 }
@@ -411,11 +504,17 @@ StatusOr<v1::Job> JobService::cancel(const std::string& job_id, const Identity& 
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
   if (Status s = check_visible(*id, caller); !s.ok()) return s;
-  auto job = store_.cancel(*id, "cancelled by the client", now());
+  std::vector<Store::CancelledChild> children;
+  auto job = store_.cancel(*id, "cancelled by the client", now(), &children);
   if (job.ok()) {
+    for (const Store::CancelledChild& child : children) {
+      if (child.was_running) remove_uploads(child.id);  // a queued child has no upload
+      notifier_.publish(child.id, child.last_sequence);
+    }
     remove_uploads(*id);
     published(*job);
-    spdlog::info("{} cancelled", job->id());
+    spdlog::info("{} cancelled{}", job->id(),
+                 children.empty() ? "" : " with " + std::to_string(children.size()) + " children");
   }
   return job;
 }
@@ -464,6 +563,12 @@ Status JobService::download(const std::string& job_id,
   if (!job.ok()) return job.status();
   const fs::path path = result_path(*id);
   std::ifstream in(path, std::ios::binary);
+  if (!in && job->child_count() > 0) {
+    return {StatusCode::kNotFound, job->id() + " is a study: each of its " +
+                                       std::to_string(job->child_count()) +
+                                       " children has a result (cellflow list --parent " + job->id() +
+                                       "; cellflow plot " + job->id() + ")"};
+  }
   if (!in) {
     return {StatusCode::kNotFound,
             job->id() + " has no result file (state " + v1::Job::State_Name(job->state()) + ")"};

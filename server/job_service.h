@@ -16,6 +16,7 @@
 #include "cellflow/v1/service.pb.h"
 #include "cellflow/v1/worker.pb.h"
 #include "jobs/registry.h"
+#include "jobs/study/study.h"
 #include "physics/core/status.h"
 #include "server/identity.h"
 #include "server/mesh_store.h"
@@ -42,7 +43,8 @@ struct JobServiceOptions {
   // plus upload_slack_bytes (a result holds a fraction of what the run keeps).
   double upload_memory_factor = 4.0;
   std::int64_t upload_slack_bytes = 64LL << 20;
-  double max_run_time_s = 0.0;  // > 0: an attempt leased longer ago loses its lease
+  double max_run_time_s = 0.0;                   // > 0: an attempt leased longer ago loses its lease
+  int max_study_points = jobs::kMaxStudyPoints;  // children of one study (SubmitJob of a StudySpec)
 };
 
 // Valid UTF-8 of at most max_bytes: invalid sequences become U+FFFD, the end
@@ -133,6 +135,9 @@ class JobService {
 
  private:
   std::int64_t now() const { return options_.now_ms(); }
+  // SubmitJob of a study: expands it, validates and memory-checks every
+  // child, then queues the study and its children in one transaction.
+  StatusOr<v1::SubmitJobResponse> submit_study(const v1::SubmitJobRequest& request, const Identity& caller);
   std::int64_t ttl_ms() const { return static_cast<std::int64_t>(options_.lease_ttl_s * 1000.0); }
   std::filesystem::path upload_path(const v1::Lease& lease) const;
   // Moves the attempt's upload (if any) into place as the job's result.
@@ -160,8 +165,9 @@ class JobService {
   std::map<std::int64_t, std::int64_t> sample_bounds_;  // job id -> max_sample_index
 };
 
-// Opaque page tokens: the last id of the page and the filter, base64url.
-std::string encode_page_token(std::int64_t after_id, v1::Job::State state);
-StatusOr<std::int64_t> decode_page_token(const std::string& token, v1::Job::State state);
+// Opaque page tokens: the last id of the page and the filters, base64url.
+std::string encode_page_token(std::int64_t after_id, v1::Job::State state, std::int64_t parent_id = 0);
+StatusOr<std::int64_t> decode_page_token(const std::string& token, v1::Job::State state,
+                                         std::int64_t parent_id = 0);
 
 }  // namespace cellflow::server

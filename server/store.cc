@@ -2,6 +2,7 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <random>
 
@@ -9,9 +10,13 @@ namespace cellflow::server {
 
 namespace {
 
+// The last column counts a study's terminal children (jobs_by_parent).
 constexpr const char* kJobColumns =
     "id, request_id, spec, state, attempt, worker_id, reason, fraction_done, remaining_s, last_seq, "
-    "result_bytes, memory_bytes, create_ms, start_ms, end_ms";
+    "result_bytes, memory_bytes, create_ms, start_ms, end_ms, parent_id, child_index, child_count, "
+    "CASE WHEN child_count > 0 THEN (SELECT COUNT(*) FROM jobs c WHERE c.parent_id = jobs.id AND c.state >= "
+    "3) "
+    "ELSE 0 END";
 
 // Migrations: entry i takes the schema from version i to i + 1.
 const char* const kMigrations[] = {
@@ -64,6 +69,15 @@ CREATE TABLE tokens (
   create_ms INTEGER NOT NULL,
   revoke_ms INTEGER
 );
+)sql",
+    // 3: studies (sweeps). A child names its study (parent_id) and its point
+    // (child_index); a study counts its children (child_count > 0) and is
+    // never leased.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN parent_id INTEGER REFERENCES jobs (id);
+ALTER TABLE jobs ADD COLUMN child_index INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN child_count INTEGER NOT NULL DEFAULT 0;
+CREATE INDEX jobs_by_parent ON jobs (parent_id, state);
 )sql",
 };
 
@@ -190,6 +204,10 @@ v1::Job job_from_row(const Stmt& row) {
   *job.mutable_create_time() = timestamp_from_ms(row.int64(12));
   if (!row.is_null(13)) *job.mutable_start_time() = timestamp_from_ms(row.int64(13));
   if (!row.is_null(14)) *job.mutable_end_time() = timestamp_from_ms(row.int64(14));
+  if (!row.is_null(15)) job.set_parent_job_id(job_name(row.int64(15)));
+  job.set_child_index(static_cast<int>(row.int64(16)));
+  job.set_child_count(static_cast<int>(row.int64(17)));
+  job.set_children_done(static_cast<int>(row.int64(18)));
   return job;
 }
 
@@ -214,6 +232,8 @@ const char* kind_name(const v1::JobEvent& event) {
       return "force_sample";
     case v1::JobEvent::kDeformationSample:
       return "deformation_sample";
+    case v1::JobEvent::kChildUpdate:
+      return "child";
     case v1::JobEvent::KIND_NOT_SET:
       break;
   }
@@ -271,6 +291,99 @@ Status lease_status(LeaseCheck check) {
   if (check == LeaseCheck::kCancelled)
     return {StatusCode::kFailedPrecondition, "lease lost: the job was cancelled"};
   return {StatusCode::kFailedPrecondition, "lease lost: the job is no longer running under this lease token"};
+}
+
+// A child's state change, seen by its study (inside the caller's write
+// transaction): a ChildUpdate event in the study's log, then the study's
+// state rolled up. RUNNING when a child first leaves QUEUED; once every child
+// is terminal, SUCCEEDED if all succeeded, else FAILED with the count and the
+// first reason. conclude = false appends the event only (a cascade that sets
+// the study's state itself).
+Status roll_up_study(sqlite3* db, std::int64_t child_id, std::int64_t now_ms, bool conclude = true) {
+  std::int64_t parent_id = 0;
+  v1::ChildUpdate update;
+  {
+    Stmt child(db, "SELECT parent_id, child_index, state, reason FROM jobs WHERE id = ?");
+    child.bind(1, child_id);
+    if (child.step() != SQLITE_ROW) return sqlite_error(db, "child");
+    if (child.is_null(0)) return {};
+    parent_id = child.int64(0);
+    update.set_child_job_id(job_name(child_id));
+    update.set_child_index(static_cast<int>(child.int64(1)));
+    update.set_state(static_cast<v1::Job::State>(child.int64(2)));
+    update.set_reason(child.text(3));
+  }
+  v1::JobEvent event;
+  *event.mutable_child_update() = update;
+  if (auto seq = append_event_row(db, parent_id, 0, std::move(event), std::nullopt, now_ms); !seq.ok()) {
+    return seq.status();
+  }
+  if (!conclude) return {};
+  // The study's state and counts only: its spec (every axis value) is not parsed per child.
+  v1::Job::State study_state = v1::Job::STATE_UNSPECIFIED;
+  int count = 0;
+  int done = 0;
+  {
+    Stmt study(
+        db,
+        "SELECT state, child_count, (SELECT COUNT(*) FROM jobs c WHERE c.parent_id = ?1 AND c.state >= 3) "
+        "FROM jobs WHERE id = ?1");
+    study.bind(1, parent_id);
+    if (study.step() != SQLITE_ROW) return sqlite_error(db, "study");
+    study_state = static_cast<v1::Job::State>(study.int64(0));
+    count = static_cast<int>(study.int64(1));
+    done = static_cast<int>(study.int64(2));
+  }
+  if (is_terminal(study_state)) return {};
+  if (study_state == v1::Job::QUEUED && update.state() != v1::Job::QUEUED) {
+    Stmt start(db, "UPDATE jobs SET state = ?, start_ms = COALESCE(start_ms, ?), reason = '' WHERE id = ?");
+    start.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms).bind(3, parent_id);
+    if (start.step() != SQLITE_DONE) return sqlite_error(db, "study start");
+    if (auto seq =
+            append_event_row(db, parent_id, 0,
+                             state_event(v1::Job::RUNNING, "child " + update.child_job_id() + " started", ""),
+                             std::nullopt, now_ms);
+        !seq.ok()) {
+      return seq.status();
+    }
+  }
+  if (!is_terminal(update.state())) return {};
+  Stmt progress(db, "UPDATE jobs SET fraction_done = ? WHERE id = ?");
+  progress.bind(1, count > 0 ? static_cast<double>(done) / count : 1.0).bind(2, parent_id);
+  if (progress.step() != SQLITE_DONE) return sqlite_error(db, "study progress");
+  if (done < count) return {};
+  // Every child is terminal: the study ends.
+  int failed = 0;
+  int cancelled = 0;
+  {
+    Stmt tally(db, "SELECT state, COUNT(*) FROM jobs WHERE parent_id = ? AND state IN (4, 5) GROUP BY state");
+    tally.bind(1, parent_id);
+    while (tally.step() == SQLITE_ROW) {
+      (tally.int64(0) == v1::Job::FAILED ? failed : cancelled) = static_cast<int>(tally.int64(1));
+    }
+  }
+  std::string reason;
+  v1::Job::State state = v1::Job::SUCCEEDED;
+  if (failed + cancelled > 0) {
+    state = v1::Job::FAILED;
+    Stmt first(db,
+               "SELECT id, child_index, state, reason FROM jobs WHERE parent_id = ? AND state IN (4, 5) "
+               "ORDER BY child_index LIMIT 1");
+    first.bind(1, parent_id);
+    reason = std::to_string(failed) + " of " + std::to_string(count) + " children failed";
+    if (cancelled > 0) reason += ", " + std::to_string(cancelled) + " cancelled";
+    if (first.step() == SQLITE_ROW) {
+      reason += "; first: " + job_name(first.int64(0)) + " (point " + std::to_string(first.int64(1)) + ", " +
+                (first.int64(2) == v1::Job::FAILED ? "failed" : "cancelled") + "): " + first.text(3);
+    }
+  }
+  Stmt end(
+      db,
+      "UPDATE jobs SET state = ?, reason = ?, end_ms = ?, fraction_done = 1.0, remaining_s = 0 WHERE id = ?");
+  end.bind(1, static_cast<int>(state)).bind(2, reason).bind(3, now_ms).bind(4, parent_id);
+  if (end.step() != SQLITE_DONE) return sqlite_error(db, "study end");
+  auto seq = append_event_row(db, parent_id, 0, state_event(state, reason, ""), std::nullopt, now_ms);
+  return seq.ok() ? Status() : seq.status();
 }
 
 }  // namespace
@@ -449,6 +562,82 @@ StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::str
   return Submitted{std::move(*job), false};
 }
 
+StatusOr<Store::Submitted> Store::submit_study(const v1::JobSpec& study,
+                                               const std::vector<StudyChild>& children,
+                                               const std::string& request_id, std::int64_t now_ms,
+                                               const std::string& owner) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  if (!request_id.empty()) {
+    Stmt find(writer_, "SELECT id FROM jobs WHERE request_id = ?");
+    find.bind(1, scoped_request_id(owner, request_id));
+    if (find.step() == SQLITE_ROW) {
+      auto job = load_job(writer_, find.int64(0));
+      if (!job.ok()) return job.status();
+      return Submitted{std::move(*job), true};
+    }
+  }
+  if (children.empty()) return Status(StatusCode::kInvalidArgument, "study: no children");
+  std::int64_t memory = 0;
+  for (const StudyChild& child : children) memory = std::max(memory, child.memory_bytes);
+  std::int64_t study_id = 0;
+  {
+    Stmt insert(writer_,
+                "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner, child_count) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?) RETURNING id");
+    if (request_id.empty()) {
+      insert.bind_null(1);
+    } else {
+      insert.bind(1, scoped_request_id(owner, request_id));
+    }
+    insert.bind_blob(2, study.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
+    insert.bind(4, memory).bind(5, now_ms).bind(6, owner).bind(7, static_cast<int>(children.size()));
+    if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert study");
+    study_id = insert.int64(0);
+    insert.step();
+  }
+  auto seq = append_event_row(
+      writer_, study_id, 0,
+      state_event(v1::Job::QUEUED, "submitted (" + std::to_string(children.size()) + " children)", ""),
+      std::nullopt, now_ms);
+  if (!seq.ok()) return seq.status();
+  // Children: ordinary jobs of the same owner, queued in point order.
+  Stmt insert(writer_,
+              "INSERT INTO jobs (spec, state, memory_bytes, create_ms, owner, parent_id, child_index) "
+              "VALUES (?, ?, ?, ?, ?, ?, ?) RETURNING id");
+  for (std::size_t i = 0; i < children.size(); ++i) {
+    insert.reset();
+    insert.bind_blob(1, children[i].spec.SerializeAsString()).bind(2, static_cast<int>(v1::Job::QUEUED));
+    insert.bind(3, children[i].memory_bytes).bind(4, now_ms).bind(5, owner).bind(6, study_id);
+    insert.bind(7, static_cast<int>(i));
+    if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert child");
+    const std::int64_t child_id = insert.int64(0);
+    insert.step();
+    auto child_seq =
+        append_event_row(writer_, child_id, 0,
+                         state_event(v1::Job::QUEUED, "submitted (study " + job_name(study_id) + ")", ""),
+                         std::nullopt, now_ms);
+    if (!child_seq.ok()) return child_seq.status();
+  }
+  insert.reset();
+  auto job = load_job(writer_, study_id);
+  if (!job.ok()) return job.status();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return Submitted{std::move(*job), false};
+}
+
+StatusOr<std::int64_t> Store::last_sequence(std::int64_t job_id) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  Stmt stmt(r.get(), "SELECT last_seq FROM jobs WHERE id = ?");
+  stmt.bind(1, job_id);
+  const int rc = stmt.step();
+  if (rc == SQLITE_DONE) return Status(StatusCode::kNotFound, "job " + job_name(job_id) + " not found");
+  if (rc != SQLITE_ROW) return sqlite_error(r.get(), "last sequence");
+  return stmt.int64(0);
+}
+
 StatusOr<v1::Job> Store::get(std::int64_t job_id) {
   Reader r = reader();
   if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
@@ -456,15 +645,17 @@ StatusOr<v1::Job> Store::get(std::int64_t job_id) {
 }
 
 StatusOr<std::vector<v1::Job>> Store::list(std::int64_t after_id, int limit, v1::Job::State state,
-                                           const std::string* owner) {
+                                           const std::string* owner, std::int64_t parent_id) {
   Reader r = reader();
   if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
   const std::string sql = std::string("SELECT ") + kJobColumns +
                           " FROM jobs WHERE id > ? AND (? = 0 OR state = ?)" +
-                          (owner ? " AND owner = ?5" : "") + " ORDER BY id LIMIT ?4";
+                          (owner ? " AND owner = ?5" : "") + (parent_id > 0 ? " AND parent_id = ?6" : "") +
+                          " ORDER BY id LIMIT ?4";
   Stmt stmt(r.get(), sql.c_str());
   stmt.bind(1, after_id).bind(2, static_cast<int>(state)).bind(3, static_cast<int>(state)).bind(4, limit);
   if (owner) stmt.bind(5, *owner);
+  if (parent_id > 0) stmt.bind(6, parent_id);
   std::vector<v1::Job> jobs;
   int rc;
   while ((rc = stmt.step()) == SQLITE_ROW) jobs.push_back(job_from_row(stmt));
@@ -475,12 +666,31 @@ StatusOr<std::vector<v1::Job>> Store::list(std::int64_t after_id, int limit, v1:
 std::int64_t Store::count(v1::Job::State state) {
   Reader r = reader();
   if (!r.get()) return -1;
-  Stmt stmt(r.get(), "SELECT COUNT(*) FROM jobs WHERE state = ?");
+  Stmt stmt(r.get(), "SELECT COUNT(*) FROM jobs WHERE state = ? AND child_count = 0");
   stmt.bind(1, static_cast<int>(state));
   return stmt.step() == SQLITE_ROW ? stmt.int64(0) : -1;
 }
 
-StatusOr<v1::Job> Store::cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms) {
+namespace {
+
+// QUEUED or RUNNING -> CANCELLED with its event (inside a write transaction);
+// the event's sequence.
+StatusOr<std::int64_t> cancel_row(sqlite3* db, std::int64_t job_id, int attempt, const std::string& worker_id,
+                                  const std::string& reason, std::int64_t now_ms) {
+  Stmt update(
+      db,
+      "UPDATE jobs SET state = ?, lease_token = NULL, lease_expires_ms = NULL, reason = ?, end_ms = ? "
+      "WHERE id = ?");
+  update.bind(1, static_cast<int>(v1::Job::CANCELLED)).bind(2, reason).bind(3, now_ms).bind(4, job_id);
+  if (update.step() != SQLITE_DONE) return sqlite_error(db, "cancel");
+  return append_event_row(db, job_id, attempt, state_event(v1::Job::CANCELLED, reason, worker_id),
+                          std::nullopt, now_ms);
+}
+
+}  // namespace
+
+StatusOr<v1::Job> Store::cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms,
+                                std::vector<CancelledChild>* cancelled_children) {
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
@@ -492,16 +702,35 @@ StatusOr<v1::Job> Store::cancel(std::int64_t job_id, const std::string& reason, 
         StatusCode::kFailedPrecondition,
         job->id() + " has already " + (job->state() == v1::Job::SUCCEEDED ? "succeeded" : "failed"));
   }
-  Stmt update(
-      writer_,
-      "UPDATE jobs SET state = ?, lease_token = NULL, lease_expires_ms = NULL, reason = ?, end_ms = ? "
-      "WHERE id = ?");
-  update.bind(1, static_cast<int>(v1::Job::CANCELLED)).bind(2, reason).bind(3, now_ms).bind(4, job_id);
-  if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "cancel");
-  auto seq =
-      append_event_row(writer_, job_id, job->attempt(),
-                       state_event(v1::Job::CANCELLED, reason, job->worker_id()), std::nullopt, now_ms);
-  if (!seq.ok()) return seq.status();
+  if (job->child_count() > 0) {
+    // A study: its queued and running children first (each with its
+    // ChildUpdate in the study's log), then the study, whose CANCELLED event
+    // ends its watchers' streams after the children's.
+    std::vector<CancelledChild> children;
+    std::vector<std::pair<int, std::string>> leases;  // attempt, worker
+    {
+      Stmt find(writer_,
+                "SELECT id, state, attempt, worker_id FROM jobs WHERE parent_id = ? AND state IN (1, 2) "
+                "ORDER BY child_index");
+      find.bind(1, job_id);
+      while (find.step() == SQLITE_ROW) {
+        children.push_back({find.int64(0), 0, find.int64(1) == v1::Job::RUNNING});
+        leases.emplace_back(static_cast<int>(find.int64(2)), find.text(3));
+      }
+    }
+    const std::string child_reason = reason + " (study " + job->id() + " cancelled)";
+    for (std::size_t i = 0; i < children.size(); ++i) {
+      auto seq = cancel_row(writer_, children[i].id, leases[i].first, leases[i].second, child_reason, now_ms);
+      if (!seq.ok()) return seq.status();
+      children[i].last_sequence = *seq;
+      if (Status s = roll_up_study(writer_, children[i].id, now_ms, /*conclude=*/false); !s.ok()) return s;
+    }
+    if (cancelled_children) *cancelled_children = std::move(children);
+  }
+  if (auto seq = cancel_row(writer_, job_id, job->attempt(), job->worker_id(), reason, now_ms); !seq.ok()) {
+    return seq.status();
+  }
+  if (Status s = roll_up_study(writer_, job_id, now_ms); !s.ok()) return s;
   auto updated = load_job(writer_, job_id);
   if (!updated.ok()) return updated.status();
   if (Status s = txn.commit(); !s.ok()) return s;
@@ -531,7 +760,7 @@ StatusOr<std::optional<Claim>> Store::claim(const std::string& worker_id, std::i
       writer_,
       "UPDATE jobs SET state = ?1, attempt = attempt + 1, lease_token = ?2, lease_expires_ms = ?3, "
       "worker_id = ?4, start_ms = COALESCE(start_ms, ?5), reason = '', fraction_done = 0, remaining_s = -1 "
-      "WHERE id = (SELECT id FROM jobs WHERE state = ?6 ORDER BY id LIMIT 1) "
+      "WHERE id = (SELECT id FROM jobs WHERE state = ?6 AND child_count = 0 ORDER BY id LIMIT 1) "
       "RETURNING id, attempt");
   update.bind(1, static_cast<int>(v1::Job::RUNNING))
       .bind(2, std::string(token))
@@ -548,6 +777,7 @@ StatusOr<std::optional<Claim>> Store::claim(const std::string& worker_id, std::i
       state_event(v1::Job::RUNNING, "leased (attempt " + std::to_string(attempt) + ")", worker_id),
       std::nullopt, now_ms);
   if (!seq.ok()) return seq.status();
+  if (Status s = roll_up_study(writer_, id, now_ms); !s.ok()) return s;
   Claim claim;
   auto job = load_job(writer_, id);
   if (!job.ok()) return job.status();
@@ -669,6 +899,7 @@ StatusOr<v1::Job> end_attempt(sqlite3* db, std::int64_t job_id, const std::strin
   auto seq =
       append_event_row(db, job_id, attempt, state_event(state, reason, worker_id), std::nullopt, now_ms);
   if (!seq.ok()) return seq.status();
+  if (Status s = roll_up_study(db, job_id, now_ms); !s.ok()) return s;
   auto job = load_job(db, job_id);
   if (!job.ok()) return job.status();
   if (Status s = txn.commit(); !s.ok()) return s;
@@ -715,6 +946,7 @@ StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms, std::
     // The attempt's start: the time of its RUNNING event (events of the attempt, kind "state").
     Stmt find(writer_,
               "SELECT id, attempt, released, worker_id, lease_expires_ms >= ?2 FROM jobs j WHERE state = ?1 "
+              "AND child_count = 0 "
               "AND (lease_expires_ms < ?2 OR (?3 > 0 AND (SELECT MIN(time_ms) FROM events e WHERE "
               "e.job_id = j.id AND e.attempt = j.attempt AND e.kind = 'state') < ?2 - ?3))");
     find.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms).bind(3, max_run_ms);
@@ -749,6 +981,7 @@ StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms, std::
     auto seq = append_event_row(writer_, e.id, e.attempt, state_event(state, reason, e.worker_id),
                                 std::nullopt, now_ms);
     if (!seq.ok()) return seq.status();
+    if (Status s = roll_up_study(writer_, e.id, now_ms); !s.ok()) return s;
     auto job = load_job(writer_, e.id);
     if (!job.ok()) return job.status();
     changed.push_back(std::move(*job));
@@ -760,7 +993,8 @@ StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms, std::
 Status Store::extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_ms) {
   std::lock_guard lock(write_mutex_);
   Stmt update(writer_,
-              "UPDATE jobs SET lease_expires_ms = MAX(COALESCE(lease_expires_ms, 0), ?) WHERE state = ?");
+              "UPDATE jobs SET lease_expires_ms = MAX(COALESCE(lease_expires_ms, 0), ?) WHERE state = ? "
+              "AND child_count = 0");
   update.bind(1, now_ms + lease_ttl_ms).bind(2, static_cast<int>(v1::Job::RUNNING));
   if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "extend leases");
   return {};
@@ -768,13 +1002,13 @@ Status Store::extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_
 
 Status Store::forgive_running_attempts() {
   std::lock_guard lock(write_mutex_);
-  Stmt update(writer_, "UPDATE jobs SET released = released + 1 WHERE state = ?");
+  Stmt update(writer_, "UPDATE jobs SET released = released + 1 WHERE state = ? AND child_count = 0");
   update.bind(1, static_cast<int>(v1::Job::RUNNING));
   if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "forgive attempts");
   return {};
 }
 
-Status Store::delete_job(std::int64_t job_id) {
+Status Store::delete_job(std::int64_t job_id, std::vector<std::int64_t>* deleted_children) {
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
@@ -786,19 +1020,35 @@ Status Store::delete_job(std::int64_t job_id) {
                                                  "; only a SUCCEEDED, FAILED or CANCELLED job can be deleted "
                                                  "(cancel it first)"};
   }
-  for (const char* sql : {"DELETE FROM events WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"}) {
+  if (!job->parent_job_id().empty()) {
+    return {StatusCode::kFailedPrecondition,
+            "job_id: " + job->id() + " is point " + std::to_string(job->child_index()) + " of study " +
+                job->parent_job_id() + "; delete the study (it deletes its children)"};
+  }
+  std::vector<std::int64_t> children;
+  {
+    Stmt find(writer_, "SELECT id FROM jobs WHERE parent_id = ?");
+    find.bind(1, job_id);
+    while (find.step() == SQLITE_ROW) children.push_back(find.int64(0));
+  }
+  // A terminal study has only terminal children (it ends after its last child).
+  for (const char* sql : {"DELETE FROM events WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
+                          "DELETE FROM jobs WHERE parent_id = ?1", "DELETE FROM events WHERE job_id = ?1",
+                          "DELETE FROM jobs WHERE id = ?1"}) {
     Stmt remove(writer_, sql);
     remove.bind(1, job_id);
     if (remove.step() != SQLITE_DONE) return sqlite_error(writer_, "delete job");
   }
-  return txn.commit();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  if (deleted_children) *deleted_children = std::move(children);
+  return {};
 }
 
 StatusOr<std::vector<v1::Job>> Store::release_all_running(const std::string& reason, std::int64_t now_ms) {
   std::vector<std::pair<std::int64_t, std::string>> running;
   {
     Reader r = reader();
-    Stmt find(r.get(), "SELECT id, lease_token FROM jobs WHERE state = ?");
+    Stmt find(r.get(), "SELECT id, lease_token FROM jobs WHERE state = ? AND child_count = 0");
     find.bind(1, static_cast<int>(v1::Job::RUNNING));
     while (find.step() == SQLITE_ROW) running.emplace_back(find.int64(0), find.text(1));
   }

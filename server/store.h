@@ -1,6 +1,7 @@
 // The job queue: one SQLite database in WAL mode, opened by the server alone.
 //
-// Tables: jobs (one row per job, with its lease), events (job_id, seq,
+// Tables: jobs (one row per job, with its lease; version 3: a study row
+// with child_count > 0 and child rows naming it by parent_id), events (job_id, seq,
 // attempt, kind, sample_index, payload = a serialized cellflow.v1.JobEvent),
 // schema_version (migrated on open), tokens (hashed API tokens; version 2,
 // which also gives every job an owner: see server/README.md,
@@ -19,6 +20,10 @@
 // index once, in increasing order. After a retry, indices the first attempt
 // already delivered keep the first attempt's values in the event log; the
 // result file is always the complete output of the attempt that finished.
+//
+// Studies: a child's every state change appends a ChildUpdate event to its
+// study and rolls the study's state up in the same transaction (store.cc,
+// roll_up_study); a study is never claimed, expired or released.
 //
 // No gRPC here: the store is tested directly (tests/service/store_test.cc).
 // Time comes in as a parameter (milliseconds since the epoch) so tests can
@@ -78,7 +83,7 @@ struct ReportOutcome {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
   static StatusOr<std::unique_ptr<Store>> open(const StoreOptions& options);
   ~Store();
@@ -98,16 +103,41 @@ class Store {
                              std::int64_t estimated_memory_bytes, std::int64_t now_ms,
                              const std::string& owner = "");
 
+  // Queues a study and all its children in one transaction: the study row
+  // (child_count = children.size(), never leased, memory = the largest
+  // child's) with its QUEUED event, then one ordinary job per child (owned
+  // by `owner`, parent_id = the study, child_index = its position). The
+  // request_id covers the whole study. The children were validated by the
+  // caller.
+  struct StudyChild {
+    v1::JobSpec spec;
+    std::int64_t memory_bytes = 0;
+  };
+  StatusOr<Submitted> submit_study(const v1::JobSpec& study, const std::vector<StudyChild>& children,
+                                   const std::string& request_id, std::int64_t now_ms,
+                                   const std::string& owner = "");
+
   StatusOr<v1::Job> get(std::int64_t job_id);
+  // The job's last event sequence (no spec parsed: a study's waking of its watchers).
+  StatusOr<std::int64_t> last_sequence(std::int64_t job_id);
   // Jobs with id > after_id, oldest first, at most `limit`; state 0 = any;
-  // owner null = every owner's.
+  // owner null = every owner's; parent_id > 0: only that study's children.
   StatusOr<std::vector<v1::Job>> list(std::int64_t after_id, int limit, v1::Job::State state,
-                                      const std::string* owner = nullptr);
+                                      const std::string* owner = nullptr, std::int64_t parent_id = 0);
+  // Jobs in `state`, studies not counted (they are never leased).
   std::int64_t count(v1::Job::State state);
 
   // QUEUED or RUNNING -> CANCELLED (clears the lease); a cancelled job is
-  // returned as it is; SUCCEEDED or FAILED gives kFailedPrecondition.
-  StatusOr<v1::Job> cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms);
+  // returned as it is; SUCCEEDED or FAILED gives kFailedPrecondition. A
+  // study's queued and running children are cancelled with it, in the same
+  // transaction (in *cancelled_children).
+  struct CancelledChild {
+    std::int64_t id = 0;
+    std::int64_t last_sequence = 0;  // its CANCELLED event
+    bool was_running = false;        // it had a lease (and maybe an upload)
+  };
+  StatusOr<v1::Job> cancel(std::int64_t job_id, const std::string& reason, std::int64_t now_ms,
+                           std::vector<CancelledChild>* cancelled_children = nullptr);
 
   // Leases the oldest QUEUED job (attempt + 1, fresh token); nullopt if none.
   StatusOr<std::optional<Claim>> claim(const std::string& worker_id, std::int64_t now_ms,
@@ -147,7 +177,9 @@ class Store {
   // charged, whether their worker renews the lease or it expires.
   Status forgive_running_attempts();
   // Removes a terminal job's row and events; FAILED_PRECONDITION otherwise.
-  Status delete_job(std::int64_t job_id);
+  // A study's children go with it (their ids in *deleted_children); a child
+  // alone is not deleted (FAILED_PRECONDITION: delete its study).
+  Status delete_job(std::int64_t job_id, std::vector<std::int64_t>* deleted_children = nullptr);
   // On start-up: every running lease expires no sooner than now + ttl, so a
   // worker that outlived a server restart can still renew it.
   Status extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_ms);

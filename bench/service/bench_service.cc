@@ -9,6 +9,10 @@
 //   3. Service overhead per job: wall time submit -> SUCCEEDED through the
 //      service (one warm local worker) minus run_compression in-process for
 //      the same spec (median of several runs).
+//   5. A 20-point sweep as one study against 20 separate submits of the same
+//      specs (one warm worker, one thread): each wall time from the first
+//      submit to the last SUCCEEDED minus the 20 run_compression calls
+//      in-process; the study's overhead should be at most the 20 submits'.
 //   4. Latency of one GetJob call (sequential, one client), whose difference
 //      between the modes is the cost of authentication (and TLS) per call.
 //
@@ -17,6 +21,7 @@
 // (tokens over TLS with a CA and a server certificate made here by openssl).
 //
 //   bench_service [--submits N] [--events N] [--watchers N] [--overhead-runs N] [--get-calls N]
+//                 [--sweep-runs N] [--sweep-points N] [--sweep-load-points N] [--only-sweep 1]
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -429,10 +434,261 @@ void bench_overhead(const fs::path& dir, int runs) {
       runs, 1e3 * median(library), 1e3 * median(service), 1e3 * median(overhead));
 }
 
+// Waits for `job_id` to end; its final state.
+v1::Job::State wait_terminal(client::Client& client, const std::string& job_id) {
+  v1::Job::State final_state = v1::Job::STATE_UNSPECIFIED;
+  client.watch(job_id, 0, [&](const v1::JobEvent& e) {
+    if (e.has_state_change()) final_state = e.state_change().state();
+    return true;
+  });
+  return final_state;
+}
+
+// The service alone: this program is the worker (lease, `samples` force
+// samples, a stand-in HDF5 upload, finish), so the figure holds no physics:
+// 20 separate jobs against one study of 20 points, wall time submit -> all done.
+void bench_sweep_service_only(const fs::path& dir, int runs, int points, int samples) {
+  const fs::path sub = dir / "sweep-service";
+  fs::create_directories(sub);
+  Mode mode = make_mode("none");
+  Server server(sub, 0, {}, &mode);
+  client::Client client(client_options(server.address, mode));
+  auto worker = v1::WorkerService::NewStub(rpc::make_channel(server.worker_address, rpc::ChannelOptions()));
+  const std::string stand_in = std::string("\x89HDF\r\n\x1a\n", 8) + std::string(4096, 'x');
+  // Runs `count` jobs from the queue to SUCCEEDED.
+  auto work = [&](int count) -> bool {
+    for (int done = 0; done < count; ++done) {
+      v1::LeaseJobRequest lease_request;
+      lease_request.set_worker_id("bench");
+      lease_request.set_wait_s(5);
+      v1::LeaseJobResponse leased;
+      {
+        grpc::ClientContext context;
+        if (!worker->LeaseJob(&context, lease_request, &leased).ok() || !leased.found()) return false;
+      }
+      {
+        grpc::ClientContext context;
+        auto stream = worker->ReportJob(&context);
+        for (int i = 0; i < samples; ++i) {
+          v1::WorkerReport report;
+          *report.mutable_lease() = leased.lease();
+          report.set_report_id(i + 1);
+          report.mutable_force_sample()->set_index(i);
+          report.mutable_force_sample()->set_force_n(1e-9 * i);
+          stream->Write(report);
+          v1::ReportAck ack;
+          if (!stream->Read(&ack)) return false;
+        }
+        stream->WritesDone();
+        (void)stream->Finish();
+      }
+      {
+        grpc::ClientContext context;
+        v1::UploadResultResponse uploaded;
+        auto stream = worker->UploadResult(&context, &uploaded);
+        v1::UploadChunk chunk;
+        *chunk.mutable_lease() = leased.lease();
+        chunk.set_data(stand_in);
+        stream->Write(chunk);
+        stream->WritesDone();
+        if (!stream->Finish().ok()) return false;
+      }
+      grpc::ClientContext context;
+      v1::FinishJobRequest finish;
+      *finish.mutable_lease() = leased.lease();
+      v1::FinishJobResponse finished;
+      if (!worker->FinishJob(&context, finish, &finished).ok()) return false;
+    }
+    return true;
+  };
+  const v1::JobSpec base = small_compression(samples, 300);
+  v1::SubmitJobRequest study_request;
+  v1::StudySpec* study = study_request.mutable_spec()->mutable_study();
+  *study->mutable_base() = base;
+  v1::StudyAxis* axis = study->add_axes();
+  axis->set_path("compression.cell.material.youngsModulusPa");
+  std::vector<v1::JobSpec> specs;
+  for (int i = 0; i < points; ++i) {
+    axis->add_values(std::to_string(500.0 + 50.0 * i));
+    specs.push_back(base);
+    specs.back().mutable_compression()->mutable_cell()->mutable_material()->set_youngs_modulus_pa(500.0 +
+                                                                                                  50.0 * i);
+  }
+  std::vector<double> separate, swept;
+  for (int r = -1; r < runs; ++r) {
+    double twenty = 0, one = 0;
+    auto run_separate = [&]() -> bool {
+      const auto start = Clock::now();
+      std::vector<std::string> ids;
+      for (const v1::JobSpec& spec : specs) {
+        v1::SubmitJobRequest request;
+        *request.mutable_spec() = spec;
+        v1::SubmitJobResponse response;
+        if (!client.submit(request, &response).ok()) return false;
+        ids.push_back(response.job().id());
+      }
+      if (!work(points)) return false;
+      for (const std::string& id : ids)
+        if (wait_terminal(client, id) != v1::Job::SUCCEEDED) return false;
+      twenty = seconds_since(start);
+      return true;
+    };
+    auto run_study = [&]() -> bool {
+      const auto start = Clock::now();
+      v1::SubmitJobResponse response;
+      if (!client.submit(study_request, &response).ok()) return false;
+      if (!work(points)) return false;
+      if (wait_terminal(client, response.job().id()) != v1::Job::SUCCEEDED) return false;
+      one = seconds_since(start);
+      return true;
+    };
+    const bool ok = r % 2 == 0 ? run_separate() && run_study() : run_study() && run_separate();
+    if (!ok) {
+      std::printf("sweep (service only): a job or the study did not succeed\n");
+      return;
+    }
+    if (r >= 0) {
+      separate.push_back(twenty);
+      swept.push_back(one);
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf(
+      "Sweep of %d points, service only (this program the worker: %d samples, a 4 KiB result per job; median "
+      "of "
+      "%d): %d separate submits %.1f ms (%.2f ms a job), one study %.1f ms (%.2f ms a child; target <= the "
+      "separate submits)\n",
+      points, samples, runs, points, 1e3 * median(separate), 1e3 * median(separate) / points,
+      1e3 * median(swept), 1e3 * median(swept) / points);
+
+  // The largest study the server takes: expansion, validation of every
+  // child and the one insert transaction, in one SubmitJob call.
+  v1::SubmitJobRequest largest;
+  v1::StudySpec* big = largest.mutable_spec()->mutable_study();
+  *big->mutable_base() = base;
+  v1::StudyAxis* e_axis = big->add_axes();
+  e_axis->set_path("compression.cell.material.youngsModulusPa");
+  for (int i = 0; i < 100; ++i) e_axis->add_values(std::to_string(100 + 10 * i));
+  v1::StudyAxis* d_axis = big->add_axes();
+  d_axis->set_path("compression.maxDeformation");
+  for (int i = 0; i < 100; ++i) d_axis->add_values(std::to_string(0.05 + 0.005 * i));
+  const auto start = Clock::now();
+  v1::SubmitJobResponse response;
+  const grpc::Status status = client.submit(largest, &response);
+  const double took = seconds_since(start);
+  v1::Job cancelled;
+  const auto cancel_start = Clock::now();
+  if (status.ok()) client.cancel(response.job().id(), &cancelled);
+  const double cancel_took = seconds_since(cancel_start);
+  std::printf("A study of %d points (the limit): SubmitJob %.2f s (%s), CancelJob of it %.2f s\n",
+              response.job().child_count(), took, status.ok() ? "queued" : status.error_message().c_str(),
+              cancel_took);
+}
+
+void bench_sweep_overhead(const fs::path& dir, int runs, int points, int load_points) {
+  const fs::path sub = dir / "sweep";
+  fs::create_directories(sub);
+  Mode mode = make_mode("none");
+  Server server(sub, 1, {"--worker-arg=--threads=1"}, &mode);
+  client::Client client(client_options(server.address, mode));
+  // The points: E = 500, 550, ... Pa (the cost of a child does not depend on E).
+  const v1::JobSpec base = small_compression(load_points, 300);
+  std::vector<v1::JobSpec> specs;
+  v1::SubmitJobRequest study_request;
+  v1::StudySpec* study = study_request.mutable_spec()->mutable_study();
+  *study->mutable_base() = base;
+  v1::StudyAxis* axis = study->add_axes();
+  axis->set_path("compression.cell.material.youngsModulusPa");
+  for (int i = 0; i < points; ++i) {
+    const double e = 500.0 + 50.0 * i;
+    axis->add_values(std::to_string(e));
+    specs.push_back(base);
+    specs.back().mutable_compression()->mutable_cell()->mutable_material()->set_youngs_modulus_pa(e);
+  }
+  std::vector<double> library, separate, swept, separate_submit, study_submit;
+  for (int r = -1; r < runs; ++r) {  // run -1 warms the worker
+    auto t0 = Clock::now();
+    for (const v1::JobSpec& spec : specs) {
+      auto params = jobs::to_params(spec.compression());
+      if (!params.ok()) return;
+      params->numerics.threads = 1;
+      if (!scenes::run_compression(*params).status.ok()) return;
+    }
+    const double in_process = seconds_since(t0);
+
+    double twenty = 0, twenty_submit = 0, one_study = 0, one_submit = 0;
+    auto run_separate = [&]() -> bool {
+      const auto start = Clock::now();
+      std::vector<std::string> ids;
+      for (const v1::JobSpec& spec : specs) {
+        v1::SubmitJobRequest request;
+        *request.mutable_spec() = spec;
+        v1::SubmitJobResponse response;
+        if (!client.submit(request, &response).ok()) return false;
+        ids.push_back(response.job().id());
+      }
+      twenty_submit = seconds_since(start);
+      for (const std::string& id : ids) {
+        if (wait_terminal(client, id) != v1::Job::SUCCEEDED) return false;
+      }
+      twenty = seconds_since(start);
+      return true;
+    };
+    auto run_study = [&]() -> bool {
+      const auto start = Clock::now();
+      v1::SubmitJobResponse response;
+      if (!client.submit(study_request, &response).ok()) return false;
+      one_submit = seconds_since(start);
+      if (wait_terminal(client, response.job().id()) != v1::Job::SUCCEEDED) return false;
+      one_study = seconds_since(start);
+      return true;
+    };
+    // Alternate which goes first: the machine's load drifts between runs.
+    const bool ok = r % 2 == 0 ? run_separate() && run_study() : run_study() && run_separate();
+    if (!ok) {
+      std::printf("sweep: a job or the study did not succeed\n");
+      return;
+    }
+    if (r >= 0) {
+      library.push_back(in_process);
+      separate.push_back(twenty);
+      swept.push_back(one_study);
+      separate_submit.push_back(twenty_submit);
+      study_submit.push_back(one_submit);
+      std::printf(
+          "  sweep run %d: in-process %.3f s; %d submits %.3f s (submit calls %.1f ms); one study %.3f s "
+          "(submit call %.1f ms)\n",
+          r, in_process, points, twenty, 1e3 * twenty_submit, one_study, 1e3 * one_submit);
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::vector<double> separate_overhead(runs), study_overhead(runs), paired(runs);
+  for (int r = 0; r < runs; ++r) {
+    separate_overhead[r] = separate[r] - library[r];
+    study_overhead[r] = swept[r] - library[r];
+    paired[r] = swept[r] - separate[r];
+  }
+  std::printf(
+      "Sweep of %d points (compression, 300 vertices, %d load points, 1 worker, 1 thread; median of %d): "
+      "in-process %.1f ms; %d separate submits %.1f ms (overhead %.1f ms, submit calls %.1f ms); one study "
+      "%.1f ms (overhead %.1f ms, submit call %.1f ms); study minus separate, paired: %.1f ms (target <= "
+      "0)\n",
+      points, load_points, runs, 1e3 * median(library), points, 1e3 * median(separate),
+      1e3 * median(separate_overhead), 1e3 * median(separate_submit), 1e3 * median(swept),
+      1e3 * median(study_overhead), 1e3 * median(study_submit), 1e3 * median(paired));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   int submits = 2000, events = 2000, watchers = 50, overhead_runs = 7, get_calls = 2000;
+  int sweep_runs = 7, sweep_points = 20, sweep_load_points = 5, only_sweep = 0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
     const int value = std::atoi(argv[i + 1]);
@@ -441,9 +697,19 @@ int main(int argc, char** argv) {
     if (flag == "--watchers") watchers = value;
     if (flag == "--overhead-runs") overhead_runs = value;
     if (flag == "--get-calls") get_calls = value;
+    if (flag == "--sweep-runs") sweep_runs = value;
+    if (flag == "--sweep-points") sweep_points = value;
+    if (flag == "--only-sweep") only_sweep = value;
+    if (flag == "--sweep-load-points") sweep_load_points = value;
   }
   const fs::path dir = fs::temp_directory_path() / ("cellflow_bench_service_" + std::to_string(::getpid()));
   fs::create_directories(dir);
+  if (only_sweep != 0) {
+    bench_sweep_service_only(dir, sweep_runs, sweep_points, sweep_load_points);
+    bench_sweep_overhead(dir, sweep_runs, sweep_points, sweep_load_points);
+    fs::remove_all(dir);
+    return 0;
+  }
   std::vector<Mode> modes = {make_mode("none"), make_mode("token", true)};
   if (make_certificates(dir / "certs")) modes.push_back(make_mode("token+tls", true, true, dir / "certs"));
   for (const Mode& mode : modes) {
@@ -454,6 +720,8 @@ int main(int argc, char** argv) {
   }
   bench_token_check(dir, 20000);
   bench_overhead(dir, overhead_runs);
+  bench_sweep_service_only(dir, sweep_runs, sweep_points, sweep_load_points);
+  bench_sweep_overhead(dir, sweep_runs, sweep_points, sweep_load_points);
   fs::remove_all(dir);
   return 0;
 }

@@ -71,10 +71,12 @@ INSERT INTO jobs (request_id, spec, state, create_ms) VALUES ('old-request', x''
   }
   auto store = open();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->schema_version(), 2);
+  EXPECT_EQ(store->schema_version(), Store::kSchemaVersion);  // 1 -> 2 (owners) -> 3 (studies)
   auto job = store->get(1);
   ASSERT_TRUE(job.ok());
   EXPECT_EQ(job->request_id(), "old-request");
+  EXPECT_TRUE(job->parent_job_id().empty());  // schema 3: an older job is neither child nor study
+  EXPECT_EQ(job->child_count(), 0);
   auto owner = store->job_owner(1);
   ASSERT_TRUE(owner.ok());
   EXPECT_EQ(*owner, "");  // older jobs belong to nobody: admins see them

@@ -16,6 +16,7 @@
 #include "client/flow_output.h"
 #include "client/output_file.h"
 #include "client/spec_arg.h"
+#include "client/study_output.h"
 #include "client/suggest.h"
 #include "client/svg_plot.h"
 #include "client/watch_printer.h"
@@ -193,6 +194,53 @@ TEST(SvgPlot, FlowPlotsLieInsideTheFrameAndOffTheLegend) {
   d.integer_columns = {false, false};
   for (int i = 0; i <= 20; ++i) d.rows.push_back({0.481 * i, 0.33 * (1 - std::exp(-0.5 * i))});
   expect_data_inside_and_off_the_legend(deformation_svg(d, 0.3, 0.33, "d"), 21);
+}
+
+TEST(StudyOutput, OverlaysAndSweptSteadyDLieInsideTheFrameAndOffTheLegend) {
+  std::vector<LabelledCurve> curves;
+  for (double e : {500.0, 1000.0, 2000.0}) {
+    Curve c = make_curve();
+    for (auto& row : c.rows) row[c.column("force_n")] *= e / 1000.0;
+    curves.push_back({"youngsModulusPa=" + std::to_string(static_cast<int>(e)), c});
+  }
+  const std::string svg = curves_overlay_svg(curves, "sweep");
+  EXPECT_EQ(std::regex_search(svg, std::regex("youngsModulusPa=2000")), true);
+  expect_data_inside_and_off_the_legend(svg, 3 * curves[0].curve.rows.size());
+  const std::vector<SweptSteadyPoint> points = {{4e-6, 0.12, true}, {2e-6, 0.05, true}, {6e-6, 0.2, false}};
+  expect_data_inside_and_off_the_legend(swept_steady_svg(points, "shearFlow.cell.radiusM", "d"), 3);
+}
+
+TEST(StudyOutput, SetArgumentsBecomeAxesAndSpecEdits) {
+  auto axis = parse_set_axis(
+      "compression.numerics.volumetricTerm=VOLUMETRIC_TERM_PER_TET,\"VOLUMETRIC_TERM_NODAL_AVERAGE\"");
+  ASSERT_TRUE(axis.ok()) << axis.status().to_string();
+  EXPECT_EQ(axis->path(), "compression.numerics.volumetricTerm");
+  ASSERT_EQ(axis->values_size(), 2);
+  EXPECT_EQ(axis->values(0), "\"VOLUMETRIC_TERM_PER_TET\"") << "a bare word is a JSON string";
+  EXPECT_EQ(axis->values(1), "\"VOLUMETRIC_TERM_NODAL_AVERAGE\"");
+  EXPECT_FALSE(parse_set_axis("noequals").ok());
+  EXPECT_FALSE(parse_set_axis("a.b=").ok());
+  EXPECT_FALSE(parse_set_axis("a.b=1,,2").ok());
+  v1::JobSpec spec;
+  spec.mutable_compression()->set_max_deformation(0.2);
+  auto edited = apply_set(spec, "compression.loadPoints=12");
+  ASSERT_TRUE(edited.ok());
+  EXPECT_EQ(edited->compression().load_points(), 12);
+  auto refused = apply_set(spec, "compression.loadPoints=1.5");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().message().rfind("--set compression.loadPoints: ", 0), 0u)
+      << refused.status().message();
+  // A child's value index: GRID with the last axis fastest, ZIP the index itself.
+  v1::StudySpec study;
+  for (int n : {2, 3}) {
+    auto* a = study.add_axes();
+    for (int k = 0; k < n; ++k) a->add_values(std::to_string(k));
+  }
+  EXPECT_EQ(study_value_index(study, 4, 0), 1);
+  EXPECT_EQ(study_value_index(study, 4, 1), 1);
+  EXPECT_EQ(study_value_index(study, 5, 1), 2);
+  study.set_combination(v1::StudySpec::ZIP);
+  EXPECT_EQ(study_value_index(study, 1, 0), 1);
 }
 
 TEST(SvgPlot, FitPointsLieInsideTheFrameAndOffTheLegend) {

@@ -676,6 +676,154 @@ TEST_F(JobServiceTest, RestartDoesNotChargeTheRunningAttempt) {
 
 // The worker's runner in process: the samples it reports and the file it
 // writes hold the library's curve, bit for bit.
+// --- studies (sweeps) through the service ---
+
+v1::SubmitJobRequest study_request(const std::vector<std::string>& deformations,
+                                   const std::string& request_id = "") {
+  v1::SubmitJobRequest request;
+  request.set_request_id(request_id);
+  auto* study = request.mutable_spec()->mutable_study();
+  *study->mutable_base() = small_compression(2);
+  auto* axis = study->add_axes();
+  axis->set_path("compression.maxDeformation");
+  for (const auto& d : deformations) axis->add_values(d);
+  return request;
+}
+
+TEST_F(JobServiceTest, StudySubmitValidatesEveryChildBeforeQueuingAny) {
+  // The third point is out of range: refused naming the axis value, nothing queued.
+  auto refused = service_->submit(study_request({"0.1", "0.2", "2.0"}));
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  const std::string& m = refused.status().message();
+  EXPECT_EQ(
+      m.rfind("study.axes[0].values[2] (compression.maxDeformation=2.0): compression.max_deformation", 0), 0u)
+      << m;
+  // A bad path and a nested study.
+  v1::SubmitJobRequest bad_path = study_request({"0.1"});
+  bad_path.mutable_spec()->mutable_study()->mutable_axes(0)->set_path("compression.maxDeformationX");
+  auto path_refused = service_->submit(bad_path);
+  ASSERT_FALSE(path_refused.ok());
+  EXPECT_EQ(path_refused.status().message().rfind("study.axes[0].path: ", 0), 0u);
+  v1::SubmitJobRequest nested = study_request({"0.1"});
+  *nested.mutable_spec()->mutable_study()->mutable_base() = study_request({"0.1"}).spec();
+  auto nested_refused = service_->submit(nested);
+  ASSERT_FALSE(nested_refused.ok());
+  EXPECT_NE(nested_refused.status().message().find("nested"), std::string::npos);
+  // Memory: a child over the limit is RESOURCE_EXHAUSTED naming its point.
+  v1::SubmitJobRequest big = study_request({"0.1"});
+  auto* vertices = big.mutable_spec()->mutable_study()->add_axes();
+  vertices->set_path("compression.cell.targetVertexCount");
+  vertices->add_values("300");
+  vertices->add_values("20000");
+  auto too_big = service_->submit(big);
+  ASSERT_FALSE(too_big.ok());
+  EXPECT_EQ(too_big.status().code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(too_big.status().message().rfind("study.axes[0].values[0], study.axes[1].values[1]", 0), 0u)
+      << too_big.status().message();
+  // More points than the server's bound.
+  std::vector<std::string> many(11, "0.1");
+  JobServiceOptions options = service_->options();
+  options.max_study_points = 10;
+  JobService bounded(*store_, notifier_, options);
+  auto too_many = bounded.submit(study_request(many));
+  ASSERT_FALSE(too_many.ok());
+  EXPECT_NE(too_many.status().message().find("at most 10"), std::string::npos);
+  auto listed = service_->list(v1::ListJobsRequest());
+  ASSERT_TRUE(listed.ok());
+  EXPECT_EQ(listed->jobs_size(), 0) << "nothing of a refused study is queued";
+}
+
+TEST_F(JobServiceTest, StudyRunsItsChildrenAndWatchStreamsTheirProgress) {
+  auto submitted = service_->submit(study_request({"0.1", "0.2"}, "sweep-1"));
+  ASSERT_TRUE(submitted.ok()) << submitted.status().to_string();
+  const std::string study = submitted->job().id();
+  EXPECT_EQ(submitted->job().child_count(), 2);
+  auto again = service_->submit(study_request({"0.1", "0.2"}, "sweep-1"));
+  ASSERT_TRUE(again.ok());
+  EXPECT_TRUE(again->already_existed());
+  EXPECT_EQ(again->job().id(), study);
+
+  std::vector<v1::JobEvent> events;
+  std::thread watcher([&] {
+    v1::WatchJobRequest request;
+    request.set_job_id(study);
+    Status s = service_->watch(
+        request,
+        [&](const v1::JobEvent& e) {
+          events.push_back(e);
+          return true;
+        },
+        [] { return false; });
+    EXPECT_TRUE(s.ok()) << s.to_string();
+  });
+  for (int i = 0; i < 2; ++i) {
+    const v1::LeaseJobResponse leased = lease();
+    ASSERT_TRUE(leased.found());
+    EXPECT_FALSE(leased.spec().has_study()) << "a worker gets a child, never the study";
+    EXPECT_EQ(leased.spec().compression().max_deformation(), i == 0 ? 0.1 : 0.2);
+    EXPECT_EQ(leased.spec().name(),
+              std::string("[compression.maxDeformation=") + (i == 0 ? "0.1" : "0.2") + "]");
+    EXPECT_TRUE(report_sample(leased.lease(), 0).lease_valid()) << "sample bounds known for the children";
+    upload(leased.lease(), kHdf5StandIn);
+    v1::FinishJobRequest finish;
+    *finish.mutable_lease() = leased.lease();
+    ASSERT_TRUE(service_->finish(finish).ok());
+  }
+  EXPECT_FALSE(lease().found());
+  watcher.join();  // ends at the study's terminal event
+  auto job = service_->get(study);
+  EXPECT_EQ(job->state(), v1::Job::SUCCEEDED);
+  EXPECT_EQ(job->children_done(), 2);
+  int updates = 0;
+  for (const auto& e : events) updates += e.has_child_update() ? 1 : 0;
+  EXPECT_EQ(updates, 4);
+  EXPECT_EQ(events.back().state_change().state(), v1::Job::SUCCEEDED);
+
+  // ListJobs by parent, in pages; the token is bound to the parent filter.
+  v1::ListJobsRequest by_parent;
+  by_parent.set_parent_job_id(study);
+  by_parent.set_page_size(1);
+  auto page = service_->list(by_parent);
+  ASSERT_TRUE(page.ok());
+  ASSERT_EQ(page->jobs_size(), 1);
+  EXPECT_EQ(page->jobs(0).child_index(), 0);
+  by_parent.set_page_token(page->next_page_token());
+  auto second = service_->list(by_parent);
+  ASSERT_TRUE(second.ok());
+  ASSERT_EQ(second->jobs_size(), 1);
+  EXPECT_EQ(second->jobs(0).child_index(), 1);
+  v1::ListJobsRequest unfiltered;
+  unfiltered.set_page_token(page->next_page_token());
+  EXPECT_EQ(service_->list(unfiltered).status().code(), StatusCode::kInvalidArgument);
+  // Another user sees neither the study nor its children.
+  const Identity bob{"bob", false, false};
+  EXPECT_EQ(service_->get(study, bob).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(service_->list(by_parent, bob).status().code(), StatusCode::kNotFound);
+
+  // Delete: the study's children and their result files go with it.
+  const std::int64_t first_child = *parse_job_name(study) + 1;
+  ASSERT_TRUE(fs::exists(service_->result_path(first_child)));
+  EXPECT_EQ(service_->delete_job(job_name(first_child)).code(), StatusCode::kFailedPrecondition);
+  ASSERT_TRUE(service_->delete_job(study).ok());
+  EXPECT_FALSE(fs::exists(service_->result_path(first_child)));
+  EXPECT_EQ(service_->get(job_name(first_child)).status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(JobServiceTest, CancellingAStudyStopsItsRunningChild) {
+  auto submitted = service_->submit(study_request({"0.1", "0.2", "0.3"}));
+  ASSERT_TRUE(submitted.ok());
+  const v1::LeaseJobResponse running = lease();
+  ASSERT_TRUE(running.found());
+  auto cancelled = service_->cancel(submitted->job().id());
+  ASSERT_TRUE(cancelled.ok());
+  EXPECT_EQ(cancelled->state(), v1::Job::CANCELLED);
+  const v1::ReportAck ack = report_sample(running.lease(), 0);
+  EXPECT_FALSE(ack.lease_valid());
+  EXPECT_TRUE(ack.cancelled()) << "the running child's worker is told to stop";
+  EXPECT_FALSE(lease().found()) << "the queued children were cancelled too";
+}
+
 TEST(JobRunnerTest, ReportsEverySampleAndWritesTheCurve) {
   const jobs::SceneRegistry registry;
   const fs::path path = fs::temp_directory_path() / ("cellflow_runner_" + std::to_string(getpid()) + ".h5");

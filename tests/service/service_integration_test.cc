@@ -495,7 +495,7 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   EXPECT_EQ(code, 0);
   const std::string unknown = run_command(cli + " frobnicate", &code);
   EXPECT_EQ(code, 1);
-  EXPECT_NE(unknown.find("unknown subcommand 'frobnicate'; the subcommands are submit, watch"),
+  EXPECT_NE(unknown.find("unknown subcommand 'frobnicate'; the subcommands are submit, sweep, watch"),
             std::string::npos)
       << unknown;
   // A mistyped subcommand or flag is named with the nearest known one.

@@ -281,7 +281,8 @@ struct ShearFlowResult {
   double tank_treading_frequency_per_s = 0.0;
   double steady_relative_change = 0.0;        // (max D - min D) / mean D over the window
   double reference_taylor_deformation = 0.0;  // D of the undeformed mesh (discretisation floor)
-  // Stability of the explicit update: k_max / (6 pi eta_lb dx), lattice units.
+  // Stability of the explicit update: k_max / (6 pi eta_lb dx s^2), lattice
+  // units (s the marker scale of numerics.hydrodynamic_radius_offset).
   double stiffness_ratio = 0.0;
   double mesh_spacing_over_dx = 0.0;  // mean edge length / dx
   // The cell's thickness 2 a1 (minor axis of the equivalent ellipsoid, last

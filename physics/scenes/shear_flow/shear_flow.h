@@ -147,8 +147,9 @@ double default_stiffness_limit(ibm::Kernel kernel);
 // < 0), lattice spacings. Each removes the excess of D over (5/4) Ca at
 // Ca = 0.05, 6 cells per radius, 3000 vertices, which the marker scaling
 // moves by 3 offset dx / R as predicted (measured at 4 and 6 cells per
-// radius, docs/accuracy/shear_flow.md): peskin4 0.4, peskin3 0.3; trilinear
-// 0 (not calibrated). The rigid-cloud stresslet radius
+// radius, docs/accuracy/shear_flow.md): peskin4 0.4 (then 0.997 at 6 and
+// 0.996 at 8 cells per radius), peskin3 0.3 (predicted from its +15 %, then
+// 1.002); trilinear 0 (not calibrated). The rigid-cloud stresslet radius
 // (bench/shear_flow/ibm_sphere_drag stresslet=1) is larger, R + 0.75 dx for
 // the surface points alone and R + 1 dx with the interior: the offset is an
 // effective value that also absorbs the mesh's own error.

@@ -2,7 +2,7 @@
 // driver of the resolution and stability studies in this folder.
 //   shear_flow_run ca=0.2 cpr=6 vertices=1000 box=10,15,5 re=0.1 tau=1
 //                  float=1 kernel=peskin4 max_strain=40 tol=2e-3 window=2
-//                  sample=0.1 nu=0.48 threads=0 every=1 ratio=2
+//                  sample=0.1 nu=0.48 threads=0 every=1 ratio=2 offset=0.5
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -58,6 +58,7 @@ int main(int argc, char** argv) {
   n.steady_window_strain = get("window", n.steady_window_strain);
   n.sample_every_strain = get("sample", n.sample_every_strain);
   n.max_stiffness_ratio = get("ratio", n.max_stiffness_ratio);
+  n.hydrodynamic_radius_offset = get("offset", n.hydrodynamic_radius_offset);
   n.threads = static_cast<int>(get("threads", 0));
   const int every = static_cast<int>(get("every", 10));
   scenes::ShearFlowCallbacks cb;

@@ -1,6 +1,7 @@
 #include "physics/coupling/immersed_cell.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -50,6 +51,26 @@ void zero_force_box(lb::Fluid& fluid, const NodeBox& box) {
       }
     }
   }
+}
+
+// X_m = c + s (X - c), c the vertex centroid; returns c.
+std::array<double, 3> place_markers(ImmersedCell& cell) {
+  const std::size_t nv = cell.positions_lattice.size() / 3;
+  std::array<double, 3> c{0.0, 0.0, 0.0};
+  for (std::size_t v = 0; v < nv; ++v) {
+    for (int d = 0; d < 3; ++d) c[d] += cell.positions_lattice[3 * v + d];
+  }
+  for (int d = 0; d < 3; ++d) c[d] /= static_cast<double>(std::max<std::size_t>(nv, 1));
+  cell.markers_lattice.resize(cell.positions_lattice.size());
+  const double s = cell.marker_scale;
+  for (std::size_t i = 0; i < cell.positions_lattice.size(); ++i) {
+    cell.markers_lattice[i] = c[i % 3] + s * (cell.positions_lattice[i] - c[i % 3]);
+  }
+  return c;
+}
+
+bool scaled_markers(const ImmersedCell& cell) {
+  return cell.marker_scale != 1.0;
 }
 
 }  // namespace
@@ -113,6 +134,17 @@ void spread_all(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int 
   const int width = ibm::kernel_width(kernel);
   for (const ImmersedCell& cell : cells.cells) zero_force_box<T>(fluid, cell.last_support);
   for (ImmersedCell& cell : cells.cells) {
+    if (scaled_markers(cell)) {
+      // F_m = F / s at X_m = c + s (X - c): the same first moment sum F (X - c).
+      place_markers(cell);
+      cell.marker_forces.resize(cell.forces_lattice.size());
+      for (std::size_t i = 0; i < cell.forces_lattice.size(); ++i) {
+        cell.marker_forces[i] = cell.forces_lattice[i] / cell.marker_scale;
+      }
+      cell.last_support = support_of(cell.markers_lattice, width);
+      ibm::spread<T>(kernel, grid, cell.markers_lattice, cell.marker_forces, fluid.force_field<T>(), threads);
+      continue;
+    }
     cell.last_support = support_of(cell.positions_lattice, width);
     ibm::spread<T>(kernel, grid, cell.positions_lattice, cell.forces_lattice, fluid.force_field<T>(),
                    threads);
@@ -133,12 +165,28 @@ void spread_forces(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, i
 // U_p = sum_x u(x) delta_h(x - X_p);  X_p += U_p dt   (interpolation, paper section 7)
 AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
   const ibm::Grid grid = ibm::grid_of(fluid);
+  const bool scaled = scaled_markers(cell);
+  if (scaled) place_markers(cell);
+  const std::vector<double>& at = scaled ? cell.markers_lattice : cell.positions_lattice;
   if (fluid.params().precision == lb::Precision::kFloat) {
-    ibm::interpolate<float>(kernel, grid, fluid.velocity_field<float>(), cell.positions_lattice,
-                            cell.velocities_lattice, threads);
+    ibm::interpolate<float>(kernel, grid, fluid.velocity_field<float>(), at, cell.velocities_lattice,
+                            threads);
   } else {
-    ibm::interpolate<double>(kernel, grid, fluid.velocity_field<double>(), cell.positions_lattice,
-                             cell.velocities_lattice, threads);
+    ibm::interpolate<double>(kernel, grid, fluid.velocity_field<double>(), at, cell.velocities_lattice,
+                             threads);
+  }
+  if (scaled) {
+    // U = U_c + (U_m - U_c) / s, U_c the mean marker velocity.
+    const std::size_t nv = cell.velocities_lattice.size() / 3;
+    double uc[3] = {0.0, 0.0, 0.0};
+    for (std::size_t v = 0; v < nv; ++v) {
+      for (int d = 0; d < 3; ++d) uc[d] += cell.velocities_lattice[3 * v + d];
+    }
+    for (int d = 0; d < 3; ++d) uc[d] /= static_cast<double>(std::max<std::size_t>(nv, 1));
+    const double inv = 1.0 / cell.marker_scale;
+    for (std::size_t i = 0; i < cell.velocities_lattice.size(); ++i) {
+      cell.velocities_lattice[i] = uc[i % 3] + (cell.velocities_lattice[i] - uc[i % 3]) * inv;
+    }
   }
   AdvectReport report;
   for (int d = 0; d < 3; ++d) {

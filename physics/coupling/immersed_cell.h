@@ -42,9 +42,19 @@ struct ImmersedCell {
   std::vector<double> positions_m;
   std::vector<double> forces_n;
   double origin_lattice[3] = {0, 0, 0};
-  double spacing_m = 0.0;          // dx
-  double newton_to_lattice = 0.0;  // F_lb = F dt^2 / (m dx) per newton
-  NodeBox last_support;            // nodes this cell's last spread touched
+  // Immersed-boundary markers at c + s (X - c), c the vertex centroid, s this
+  // scale in (0, 1]; forces F / s are spread there and the vertices move
+  // with U_c + (U_marker - U_c) / s, U_c the mean marker velocity. The first
+  // moment of the spread forces (the stresslet) and the power F . U equal
+  // those of the vertices (the elastic forces sum to zero); the point cloud,
+  // which acts on the fluid like a sphere a fraction of dx larger than the
+  // mesh, is shrunk by that fraction. 1: markers on the vertices (plain IBM).
+  double marker_scale = 1.0;
+  std::vector<double> markers_lattice;  // marker positions of the last spread / advect (scale != 1)
+  std::vector<double> marker_forces;    // F / s (scale != 1)
+  double spacing_m = 0.0;               // dx
+  double newton_to_lattice = 0.0;       // F_lb = F dt^2 / (m dx) per newton
+  NodeBox last_support;                 // nodes this cell's last spread touched
 };
 
 // The cells immersed in one fluid, in a fixed order (the order of spreading

@@ -430,5 +430,87 @@ TEST(ImmersedCells, AdvectMovesEachCellByItsOwnInterpolatedVelocity) {
   EXPECT_GT(mean_dx[1], 0.0);
 }
 
+// Scaled markers (ImmersedCell::marker_scale, the shear-flow scene's
+// hydrodynamic radius correction): the lattice receives the first moment
+// sum F (X - c) of the vertex forces (the stresslet and the torque) to
+// round-off, although the forces F / s sit at c + s (X - c); and in a linear
+// flow the vertices move with the flow's velocity at their own positions
+// (U_c + (U_m - U_c) / s undoes the scaling exactly).
+TEST(ImmersedCell, ScaledMarkersKeepTheFirstMomentAndFollowALinearFlow) {
+  const Cell cell = make_cell(1000);
+  const units::Units u = test_units();
+  constexpr double kScale = 0.9;
+  lb::Fluid fluid = make_test_fluid(lb::Precision::kDouble);
+  const double centre[3] = {0.5 * kBox + 0.3, 0.5 * kBox - 0.2, 0.5 * kBox + 0.1};
+  ImmersedCells cells;
+  ImmersedCell& immersed = add_cell(cells, cell.mesh, cell.body, u, centre);
+  immersed.marker_scale = kScale;
+  deform(immersed);
+  ASSERT_LT(compute_elastic_forces(immersed, 1).first_inverted_tet, 0);
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
+
+  const std::size_t nv = immersed.positions_lattice.size() / 3;
+  double c[3] = {0, 0, 0};
+  for (std::size_t v = 0; v < nv; ++v) {
+    for (int d = 0; d < 3; ++d) c[d] += immersed.positions_lattice[3 * v + d] / static_cast<double>(nv);
+  }
+  // M_ab = sum F_a (X_b - c_b) over the vertices and sum f_a (x_b - c_b) over the nodes.
+  double points[3][3] = {}, lattice[3][3] = {}, scale = 0.0;
+  for (std::size_t v = 0; v < nv; ++v) {
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) {
+        const double m = immersed.forces_lattice[3 * v + a] * (immersed.positions_lattice[3 * v + b] - c[b]);
+        points[a][b] += m;
+        scale += std::abs(m);
+      }
+    }
+  }
+  const lb::VectorField<double> f = fluid.force_field<double>();
+  for (int k = 0; k < fluid.nz(); ++k) {
+    for (int j = 0; j < fluid.ny(); ++j) {
+      for (int i = 0; i < fluid.nx(); ++i) {
+        const std::size_t n = fluid.node(i, j, k);
+        const double r[3] = {i + 0.5 - c[0], j + 0.5 - c[1], k + 0.5 - c[2]};
+        const double force[3] = {f.x[n], f.y[n], f.z[n]};
+        for (int a = 0; a < 3; ++a) {
+          for (int b = 0; b < 3; ++b) lattice[a][b] += force[a] * r[b];
+        }
+      }
+    }
+  }
+  ASSERT_GT(scale, 0.0);
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) {
+      EXPECT_NEAR(lattice[a][b], points[a][b], 1e-12 * scale) << "first moment " << a << b;
+    }
+  }
+  std::printf("scaled markers: first moment xy %.6e (vertices) %.6e (lattice)\n", points[0][1],
+              lattice[0][1]);
+
+  // u = (g (y - y0), h (x - x0), 0) on every node: linear, so interpolated exactly.
+  const double g = 1e-3, h = -4e-4, y0 = 11.0, x0 = 13.0;
+  std::vector<double> ux(fluid.num_nodes()), uy(fluid.num_nodes()), uz(fluid.num_nodes(), 0.0);
+  for (int k = 0; k < fluid.nz(); ++k) {
+    for (int j = 0; j < fluid.ny(); ++j) {
+      for (int i = 0; i < fluid.nx(); ++i) {
+        ux[fluid.node(i, j, k)] = g * (j + 0.5 - y0);
+        uy[fluid.node(i, j, k)] = h * (i + 0.5 - x0);
+      }
+    }
+  }
+  lb::zero_force_field(fluid);
+  lb::set_equilibrium(fluid, {}, ux, uy, uz);
+  lb::update_velocity_field(fluid);
+  const std::vector<double> before = immersed.positions_lattice;
+  advect_cell(immersed, fluid, ibm::Kernel::kPeskin4, 1);
+  for (std::size_t v = 0; v < nv; ++v) {
+    const double expected[3] = {g * (before[3 * v + 1] - y0), h * (before[3 * v] - x0), 0.0};
+    for (int d = 0; d < 3; ++d) {
+      ASSERT_NEAR(immersed.velocities_lattice[3 * v + d], expected[d], 1e-12)
+          << "vertex " << v << " dir " << d;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace cellflow::coupling

@@ -161,6 +161,29 @@ TEST(ShearFlowPlan, ListsEveryViolation) {
   }
 }
 
+// The hydrodynamic radius offset: negative (down to -1) is the kernel's
+// default, [0, 2] and at most half of cells_per_radius explicit; NaN, 2.5,
+// -3 and 1.5 at 2 cells per radius are refused, naming the field.
+TEST(ShearFlowPlan, HydrodynamicRadiusOffsetRange) {
+  ShearFlowParams p = base_params();
+  EXPECT_DOUBLE_EQ(radius_offset(p.numerics), default_radius_offset(p.numerics.ibm_kernel));
+  EXPECT_DOUBLE_EQ(default_radius_offset(ibm::Kernel::kPeskin4), 0.4);
+  for (const double ok : {-1.0, 0.0, 0.4, 2.0}) {
+    p.numerics.hydrodynamic_radius_offset = ok;
+    EXPECT_TRUE(validate(p).ok()) << ok << ": " << validate(p).to_string();
+  }
+  for (const double bad : {std::nan(""), 2.5, -3.0}) {
+    p.numerics.hydrodynamic_radius_offset = bad;
+    const Status s = validate(p);
+    EXPECT_EQ(s.code(), StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(s.message().find("shear_flow.numerics.hydrodynamic_radius_offset"), std::string::npos)
+        << s.message();
+  }
+  p.numerics.hydrodynamic_radius_offset = 1.5;
+  p.numerics.cells_per_radius = 2.0;
+  EXPECT_NE(validate(p).message().find("shear_flow.numerics.hydrodynamic_radius_offset"), std::string::npos);
+}
+
 TEST(ShearFlowRun, RefusesACellTooStiffForTheExplicitUpdate) {
   ShearFlowParams p = base_params();
   p.capillary_number = 2e-4;  // k_max / (6 pi eta dx) ~ 50 at Ca = 2e-4, 4 cells per radius

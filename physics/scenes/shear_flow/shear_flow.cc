@@ -360,7 +360,9 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
 
   // Vertices at the box centre (lattice units).
   const double centre[3] = {0.5 * setup.nx, 0.5 * setup.ny, 0.5 * setup.nz};
-  coupling::add_cell(run.cells, run.mesh, run.body, u, centre);
+  coupling::ImmersedCell& immersed = coupling::add_cell(run.cells, run.mesh, run.body, u, centre);
+  // s = 1 - offset dx / R (numerics.hydrodynamic_radius_offset).
+  immersed.marker_scale = 1.0 - radius_offset(n) * u.dx_m() / radius;
   run.x_si.resize(3 * nv);
   for (std::size_t v = 0; v < nv; ++v) {
     if (run.mesh.on_surface[v] && std::abs(run.mesh.positions_m[3 * v + 2]) < kTankTreadBand * radius) {

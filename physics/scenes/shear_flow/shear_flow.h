@@ -66,11 +66,11 @@ inline cell::CellParams flow_cell_defaults() {
 // Numerical options of the flow scene: each trades time for accuracy or
 // guards a stability limit. Field names follow proto ShearFlowNumerics.
 struct ShearFlowNumerics {
-  // Lattice nodes per cell radius R / dx, in [2, 64]. 6 (bench/shear_flow,
-  // Ca = 0.2, 3000 vertices, one core): steady in ~100 s with D 14 % above
-  // Roscoe; 4: 15 s, +22 %; 8: 250 s, +10 %. 12 cells and 8000 vertices
-  // (shear_flow_validation_long_test, one core) measured D at +8.1 % (Ca 0.02,
-  // 360 s) and +7.5 % (Ca 0.05, 410 s) from (5/4) Ca.
+  // Lattice nodes per cell radius R / dx, in [2, 64]. 6 with the default
+  // hydrodynamic_radius_offset (Ca = 0.05, 3000 vertices, one core): D
+  // within 0.3 % of (5/4) Ca in ~19000 steps (~65 s on a quiet core); 4 cells
+  // (889 vertices): +10 %. Without the offset D was +20 % (6), +32 % (4),
+  // +8 % (12 cells, 2793 s) above (5/4) Ca (docs/accuracy/shear_flow.md).
   double cells_per_radius = 6.0;
   double box_x_radii = 10.0;     // box length along the flow / R (periodic)
   double box_y_radii = 15.0;     // wall distance H / R
@@ -109,6 +109,19 @@ struct ShearFlowNumerics {
   // by the kernel, so its stiffness limit is halved (calibrated for peskin4
   // only, see the run's stability check).
   elastic::VolumetricTerm volumetric = elastic::VolumetricTerm::kPerTet;
+  // Hydrodynamic radius correction, in lattice spacings: < 0 (default) the
+  // kernel's calibrated value default_radius_offset(ibm_kernel); 0 none; at
+  // most 2 and half of cells_per_radius. The fluid within the kernel's reach
+  // moves with the immersed points, so the cell acts on the fluid like a
+  // larger sphere, and D comes out too large by about 3 delta dx / R (the
+  // stresslet of a sphere grows as a^3; measured: +20 % at 6 cells per
+  // radius). The coupling therefore places the immersed-boundary markers at
+  // c + s (X - c), s = 1 - offset dx / R, c the vertex centroid, spreads
+  // F / s there and moves the vertices with U_c + (U_marker - U_c) / s
+  // (coupling::ImmersedCell::marker_scale): the stresslet sum F (X - c) and
+  // the power F . U are those of the mesh, the mesh itself (and every
+  // observable) keeps radius R.
+  double hydrodynamic_radius_offset = -1.0;
   int threads = 0;  // OpenMP threads; 0 = OpenMP default
 };
 
@@ -129,6 +142,21 @@ struct ShearFlowParams {
 // 4, Ca down to 0.001): peskin4 blew up at 8.2 (stable at 5.5) -> 2.5;
 // peskin3 at 1.64 (stable at 0.82) -> 0.4; trilinear at 0.16 -> 0.05.
 double default_stiffness_limit(ibm::Kernel kernel);
+
+// Calibrated hydrodynamic radius offsets (numerics.hydrodynamic_radius_offset
+// < 0), lattice spacings. Each removes the excess of D over (5/4) Ca at
+// Ca = 0.05, 6 cells per radius, 3000 vertices, which the marker scaling
+// moves by 3 offset dx / R as predicted (measured at 4 and 6 cells per
+// radius, docs/accuracy/shear_flow.md): peskin4 0.4 (then 0.997 at 6 and
+// 0.996 at 8 cells per radius), peskin3 0.3 (predicted from its +15 %, then
+// 1.002); trilinear 0 (not calibrated). The rigid-cloud stresslet radius
+// (bench/shear_flow/ibm_sphere_drag stresslet=1) is larger, R + 0.75 dx for
+// the surface points alone and R + 1 dx with the interior: the offset is an
+// effective value that also absorbs the mesh's own error.
+double default_radius_offset(ibm::Kernel kernel);
+// The offset a run uses: numerics.hydrodynamic_radius_offset, or the
+// kernel's default when that is negative.
+double radius_offset(const ShearFlowNumerics& numerics);
 
 // Every field out of range, named relative to the params
 // ("numerics.cells_per_radius", "cell.radius_m") with its allowed range.
@@ -254,7 +282,8 @@ struct ShearFlowResult {
   double tank_treading_frequency_per_s = 0.0;
   double steady_relative_change = 0.0;        // (max D - min D) / mean D over the window
   double reference_taylor_deformation = 0.0;  // D of the undeformed mesh (discretisation floor)
-  // Stability of the explicit update: k_max / (6 pi eta_lb dx), lattice units.
+  // Stability of the explicit update: k_max / (6 pi eta_lb dx s^2), lattice
+  // units (s the marker scale of numerics.hydrodynamic_radius_offset).
   double stiffness_ratio = 0.0;
   double mesh_spacing_over_dx = 0.0;  // mean edge length / dx
   // The cell's thickness 2 a1 (minor axis of the equivalent ellipsoid, last

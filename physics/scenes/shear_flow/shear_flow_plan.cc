@@ -315,6 +315,15 @@ Violations violations(const ShearFlowParams& params) {
                 "be at most " + number_text(units::kMaxLatticeBytes) +
                     " (1 TiB, the lattice cap; <= 0: the cap alone)");
   }
+  if (!(n.hydrodynamic_radius_offset >= -1.0 && n.hydrodynamic_radius_offset <= 2.0)) {
+    v.add("numerics.hydrodynamic_radius_offset",
+          "= " + number_text(n.hydrodynamic_radius_offset, 6) +
+              " must lie in [0, 2] lattice spacings (negative down to -1: the kernel's default)");
+  } else if (cpr_ok && !(radius_offset(n) <= 0.5 * n.cells_per_radius)) {
+    v.add("numerics.hydrodynamic_radius_offset",
+          "= " + number_text(n.hydrodynamic_radius_offset, 6) +
+              " must be at most half of cells_per_radius (the markers would shrink below R / 2)");
+  }
   if (!(n.max_stiffness_ratio >= 0.0 && n.max_stiffness_ratio <= 100.0)) {
     v.add("numerics.max_stiffness_ratio",
           "= " + number_text(n.max_stiffness_ratio, 6) + " must lie in [0, 100] (0: default)");
@@ -341,6 +350,23 @@ StatusOr<PlannedShearFlow> plan_shear_flow_run(const ShearFlowParams& params, st
 
 void PlannedShearFlow::set_threads(int threads) {
   params_.numerics.threads = std::clamp(threads, 0, 1024);
+}
+
+double default_radius_offset(ibm::Kernel kernel) {
+  switch (kernel) {
+    case ibm::Kernel::kPeskin4:
+      return 0.4;
+    case ibm::Kernel::kPeskin3:
+      return 0.3;
+    case ibm::Kernel::kTrilinear:
+      return 0.0;
+  }
+  return 0.0;
+}
+
+double radius_offset(const ShearFlowNumerics& numerics) {
+  return numerics.hydrodynamic_radius_offset < 0.0 ? default_radius_offset(numerics.ibm_kernel)
+                                                   : numerics.hydrodynamic_radius_offset;
 }
 
 }  // namespace cellflow::scenes

@@ -60,7 +60,10 @@ Status check_stiffness(const ShearFlowParams& params, const units::Units& u, con
   // k_lb = F_lb / x_lb = force_to_lattice(k_max dx)
   const double k_lb = u.force_to_lattice(k_max * u.dx_m());
   const double drag_lb = 6.0 * kPi * u.kinematic_viscosity_lattice();
-  result.stiffness_ratio = k_lb / drag_lb;
+  // Scaled markers (numerics.hydrodynamic_radius_offset) spread F / s and
+  // move the vertices by U / s: the coupling sees the stiffness k / s^2.
+  const double s = 1.0 - radius_offset(n) * u.dx_m() / params.cell.radius_m;
+  result.stiffness_ratio = k_lb / drag_lb / (s * s);
   // The calibrated limits hold for per-tet volume terms, whose stiffest modes
   // alternate from vertex to vertex and are smoothed away by the kernel; the
   // nodal average's stiffest modes span a vertex patch and pass through it:

@@ -33,6 +33,7 @@ struct ServerOptions {
   bool sqlite_synchronous_full = false;
   std::int64_t max_mesh_bytes = 64LL << 20;  // UploadMesh size limit
   double max_run_time_s = 86400.0;           // an attempt leased longer ago loses its lease; 0: no limit
+  std::int64_t max_checkpoint_bytes = 0;     // UploadCheckpoint size limit; 0: the result upload's limit
 };
 
 // Runs until SIGINT/SIGTERM; returns the process exit code (0 after a clean

@@ -38,6 +38,9 @@ struct JobEvents {
   // A complete checkpoint is at written.path (called on the physics thread;
   // the file is rewritten at the next checkpoint, so copy or upload it here).
   std::function<void(const CheckpointWritten&)> checkpoint_written;
+  // When should_stop is true: true (a shutdown that hands the job back, not a
+  // cancel) lets a checkpointing run go on to its next sample and checkpoint there.
+  std::function<bool()> checkpoint_before_stop;
 };
 
 struct RunOptions {

@@ -224,6 +224,8 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     reporter.send(std::move(report));
   };
   events.should_stop = [&] { return reporter.should_stop() || stop_.load(); };
+  // Stopping to hand the job back: a flow job first checkpoints at its next sample.
+  events.checkpoint_before_stop = [&] { return stop_.load() && !reporter.should_stop(); };
 
   const std::string stem = job + ".attempt-" + std::to_string(lease.attempt());
   const fs::path temporary = fs::path(options_.scratch_dir) / (stem + ".h5.tmp");

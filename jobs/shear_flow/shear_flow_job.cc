@@ -180,12 +180,22 @@ class ShearFlowJob final : public PreparedJob {
   // setup.lattice_bytes), the largest of the transient per-node buffers in
   // double (the Couette start profile, 2 values; the velocity field update
   // after it and the fluid velocity snapshots, 3 values each, one at a
-  // time), and the cell mesh at the quasi-static rate per vertex.
+  // time), the snapshot positions a checkpointed run keeps (a fixed
+  // budget), and the cell mesh at the quasi-static rate per vertex.
   std::int64_t memory_bytes() const override {
     const scenes::ShearFlowSetup& setup = planned_.setup();
     const double nodes = static_cast<double>(setup.nx) * setup.ny * setup.nz;
     const double transient_values = 3.0;
-    const double bytes = static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0;
+    // A checkpointed run keeps the snapshot positions, up to a fixed budget.
+    const auto& numerics = planned_.params().numerics;
+    const double frames = numerics.snapshot_every_strain > 0.0
+                              ? numerics.max_strain / numerics.snapshot_every_strain + 2.0
+                              : 0.0;
+    const double kept_snapshots =
+        std::min(frames * static_cast<double>(cell_vertex_bound(planned_.params().cell)) * 3.0 * 8.0,
+                 static_cast<double>(scenes::kMaxCheckpointSnapshotBytes));
+    const double bytes =
+        static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0 + kept_snapshots;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18)) +
            cell_vertex_bound(planned_.params().cell) * kBytesPerVertex;
   }
@@ -238,6 +248,7 @@ class ShearFlowJob final : public PreparedJob {
         last = Clock::now();
         return true;
       };
+      if (events.checkpoint_before_stop) ck.checkpoint_before_stop = events.checkpoint_before_stop;
       ck.on_written = [&events](const scenes::ShearFlowCheckpointWritten& w) {
         if (events.checkpoint_written)
           events.checkpoint_written({w.path, w.time_step, w.last_sample_index, w.bytes, w.seconds,

@@ -140,6 +140,51 @@ TEST_F(ShearFlowCheckpoint, ResumedRunIsBitIdenticalToTheUninterruptedRun) {
   }
 }
 
+// A stop that keeps the work (a worker handing its job back) goes on to the
+// next sample step, checkpoints there and stops; the resumed run is again
+// bit-identical. A cancel (checkpoint_before_stop false) stops at once.
+TEST_F(ShearFlowCheckpoint, StopThatKeepsTheWorkCheckpointsAtTheNextSampleStep) {
+  ShearFlowParams p = tiny_params();
+  p.numerics.max_strain = 3.0;  // past step 256, where a stop is polled between samples
+  const Outcome fresh = run(p, 0, "");
+  ASSERT_TRUE(fresh.result.status.ok());
+  const std::int64_t every = fresh.result.samples[1].time_step;
+  ASSERT_NE(256 % every, 0) << "the 256-step poll must fall between samples";
+  const std::int64_t next_sample_step = (256 / every + 1) * every;
+
+  for (const bool keep : {true, false}) {
+    SCOPED_TRACE(keep ? "keep the work" : "cancel");
+    int polls_since_armed = -1;  // armed by the last sample before step 256
+    std::vector<ShearFlowCheckpointWritten> written;
+    ShearFlowCallbacks cb;
+    cb.on_sample = [&](const ShearFlowSample& s) {
+      if (s.time_step + every > 256 && polls_since_armed < 0) polls_since_armed = 0;
+    };
+    // Asked to stop from the poll at step 256 on: the poll at that last
+    // sample step itself still says go on.
+    cb.should_stop = [&] { return polls_since_armed >= 0 && polls_since_armed++ > 0; };
+    cb.checkpointing.spec_hash = kSpecHash;
+    cb.checkpointing.write_path = path_;
+    cb.checkpointing.due = [] { return false; };  // no periodic checkpoints
+    cb.checkpointing.checkpoint_before_stop = [keep] { return keep; };
+    cb.checkpointing.on_written = [&](const ShearFlowCheckpointWritten& w) { written.push_back(w); };
+    const ShearFlowResult stopped = run_shear_flow(p, cb);
+    EXPECT_EQ(stopped.stop, ShearFlowStop::kCancelled);
+    if (!keep) {
+      EXPECT_EQ(stopped.time_steps, 256);
+      EXPECT_TRUE(written.empty());
+      continue;
+    }
+    EXPECT_EQ(stopped.time_steps, next_sample_step);
+    ASSERT_EQ(written.size(), 1u);
+    ASSERT_TRUE(written[0].status.ok());
+    EXPECT_EQ(written[0].time_step, next_sample_step);
+    const Outcome resumed = run(p, 0, "", path_);
+    EXPECT_EQ(resumed.result.resumed_from_step, next_sample_step);
+    expect_same_samples(fresh.result, resumed.result);
+  }
+}
+
 // Writes a checkpoint of tiny_params after its 4th sample step into `path`.
 void make_checkpoint(const std::string& path) {
   const Outcome writer = run(tiny_params(), 4, path);

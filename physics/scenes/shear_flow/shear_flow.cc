@@ -46,7 +46,10 @@ constexpr double kTankTreadBand = 0.7;
 constexpr std::size_t kParallelVertices = 2000;
 
 void emit_positions(Run& run, double time_s, const std::vector<double>& x_lb) {
-  if (run.keep_snapshots) run.snapshots.push_back({run.snapshot_index, time_s, x_lb});
+  if (run.keep_snapshots &&
+      (run.snapshots.size() + 1) * x_lb.size() * sizeof(double) <= kMaxCheckpointSnapshotBytes) {
+    run.snapshots.push_back({run.snapshot_index, time_s, x_lb});
+  }
   if (!run.callbacks->on_positions) return;
   const double dx = run.plan.units.dx_m();
   std::vector<double> positions(x_lb.size());
@@ -191,6 +194,7 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t
   };
 
   std::int64_t step = 0;
+  bool stop_pending = false;  // stop at the next sample step, after its checkpoint
   if (resume_step > 0) {
     step = resume_step;
     replay(run, result);
@@ -302,8 +306,21 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t
       emit_positions(run, time_s, cell.positions_lattice);
       emit_fluid<T>(run, fluid, run.snapshot_index, time_s);
     }
-    if (checkpoints && step % sample_steps == 0 && ck.due()) write_checkpoint_now(run, result, fluid, step);
-    if (cb.should_stop && (step % sample_steps == 0 || step % 256 == 0) && cb.should_stop()) {
+    const bool sample_step = step % sample_steps == 0;
+    bool checkpointed = false;
+    if (checkpoints && sample_step && (stop_pending || ck.due())) {
+      write_checkpoint_now(run, result, fluid, step);
+      checkpointed = true;
+    }
+    if (cb.should_stop && (sample_step || step % 256 == 0) && (stop_pending || cb.should_stop())) {
+      // A stop that keeps the work (a worker shutting down, not a cancel):
+      // on to the next sample step, where a checkpoint can be taken.
+      const bool keep = checkpoints && ck.checkpoint_before_stop && ck.checkpoint_before_stop();
+      if (keep && !sample_step) {
+        stop_pending = true;
+        continue;
+      }
+      if (keep && !checkpointed) write_checkpoint_now(run, result, fluid, step);
       result.stop = ShearFlowStop::kCancelled;
       result.status = Status(StatusCode::kCancelled, "stopped on request at " + where(run, step));
       break;
@@ -447,6 +464,14 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
     if (resumed.ok()) {
       resume_step = *resumed;
       result.resumed_from_step = resume_step;
+      if (n.snapshot_every_strain > 0.0 &&
+          run.snapshots.size() < static_cast<std::size_t>(run.snapshot_index) + 1) {
+        result.warnings.push_back(
+            "resumed from the checkpoint after time step " + std::to_string(resume_step) + ": " +
+            std::to_string(run.snapshot_index + 1 - run.snapshots.size()) +
+            " position frames before it (beyond the checkpoint's frame budget) are not in "
+            "this result");
+      }
       if (n.fluid_snapshots && n.snapshot_every_strain > 0.0) {
         result.warnings.push_back("resumed from the checkpoint after time step " +
                                   std::to_string(resume_step) +

@@ -236,6 +236,11 @@ struct ShearFlowCheckpointWritten {
 // wrote it would have (same spec, same thread count, same binary), except the
 // fluid velocity frames before the checkpoint, which are not kept (a warning
 // says so).
+// A checkpointed run keeps the cell positions of its snapshots for the
+// checkpoints (so a resumed run's recorder gets every frame), up to this many
+// bytes; later frames are not kept, and a run resumed without them says so.
+inline constexpr std::size_t kMaxCheckpointSnapshotBytes = std::size_t{64} << 20;
+
 struct ShearFlowCheckpointing {
   // Identifies the job (e.g. a hash of its spec); a checkpoint written under
   // another value is refused.
@@ -250,6 +255,11 @@ struct ShearFlowCheckpointing {
   std::function<bool()> due;
   std::string write_path;
   std::function<void(const ShearFlowCheckpointWritten&)> on_written;
+  // Polled when should_stop returns true (checkpoints enabled): true (e.g. a
+  // worker shutting down, not a cancel) makes the run go on to the next
+  // sample step, write a checkpoint there and then stop (kCancelled), so the
+  // next attempt loses nothing. Re-polled every 256 steps meanwhile.
+  std::function<bool()> checkpoint_before_stop;
 };
 
 struct ShearFlowCallbacks {

@@ -19,12 +19,28 @@
 
 namespace cellflow::jobs {
 
+// A checkpoint file a running job wrote (flow jobs; RunOptions.checkpoint_path).
+struct CheckpointWritten {
+  std::string path;
+  std::int64_t time_step = 0;  // the run resumes after this step
+  int last_sample_index = -1;  // samples 0 .. this are inside
+  std::uint64_t bytes = 0;
+  double seconds = 0.0;  // wall time of the write
+  std::string error;     // non-empty: the write failed (the run goes on, the previous checkpoint stays)
+};
+
 // What a running job reports. All optional.
 struct JobEvents {
   std::function<void(const v1::ForceSample&)> force_sample;
   std::function<void(const v1::DeformationSample&)> deformation_sample;
   std::function<void(double fraction_done, const std::string& stage)> progress;
   std::function<bool()> should_stop;  // true: stop at the next check, outcome kCancelled
+  // A complete checkpoint is at written.path (called on the physics thread;
+  // the file is rewritten at the next checkpoint, so copy or upload it here).
+  std::function<void(const CheckpointWritten&)> checkpoint_written;
+  // When should_stop is true: true (a shutdown that hands the job back, not a
+  // cancel) lets a checkpointing run go on to its next sample and checkpoint there.
+  std::function<bool()> checkpoint_before_stop;
 };
 
 struct RunOptions {
@@ -37,12 +53,20 @@ struct RunOptions {
   // fit: the curve library's cache directory; empty: jobs::default_library_dir()
   // ($CELLFLOW_LIBRARY_DIR, $XDG_CACHE_HOME/cellflow/curves, ~/.cache/cellflow/curves).
   std::string library_dir;
+  // Checkpoint and restart (flow jobs; other scenes ignore these).
+  // checkpoint_interval_s > 0 and checkpoint_path set: a checkpoint at the
+  // first sample step after each interval of wall time (from the start).
+  double checkpoint_interval_s = 0.0;
+  std::string checkpoint_path;
+  std::string resume_path;  // non-empty: resume from this checkpoint (validated by the scene)
 };
 
 struct RunOutcome {
   Status status;                // OK; kCancelled when should_stop said so; otherwise the failure
   bool result_written = false;  // the result file exists and holds what was computed
   int samples = 0;
+  std::int64_t resumed_from_step = -1;  // the checkpoint's step it resumed after; -1: from the start
+  std::string resume_refused;           // why resume_path was not used (the run started from 0)
 };
 
 // Where cellflow-run writes: CSV rows as the run goes (a failed run keeps its

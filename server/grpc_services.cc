@@ -171,6 +171,35 @@ grpc::Status WorkerServiceImpl::UploadResult(grpc::ServerContext* context,
   return grpc::Status::OK;
 }
 
+grpc::Status WorkerServiceImpl::UploadCheckpoint(grpc::ServerContext* context,
+                                                 grpc::ServerReader<v1::CheckpointChunk>* reader,
+                                                 v1::UploadCheckpointResponse* response) {
+  CELLFLOW_AUTHORIZE(context, caller)
+  v1::CheckpointChunk chunk;
+  if (!reader->Read(&chunk)) return {grpc::StatusCode::INVALID_ARGUMENT, "checkpoint upload without chunks"};
+  const v1::Lease lease = chunk.lease();
+  const v1::CheckpointInfo info = chunk.info();
+  auto upload = jobs_.begin_checkpoint_upload(lease);
+  if (!upload.ok()) return to_grpc(upload.status());
+  do {
+    if (context->IsCancelled()) return {grpc::StatusCode::CANCELLED, "the worker went away"};
+    if (Status s = (*upload)->write(chunk.offset(), chunk.data()); !s.ok()) return to_grpc(s);
+  } while (reader->Read(&chunk));
+  auto size = jobs_.commit_checkpoint(lease, info, **upload);
+  if (!size.ok()) return to_grpc(size.status());
+  response->set_size_bytes(*size);
+  return grpc::Status::OK;
+}
+
+grpc::Status WorkerServiceImpl::FetchCheckpoint(grpc::ServerContext* context,
+                                                const v1::FetchCheckpointRequest* request,
+                                                grpc::ServerWriter<v1::CheckpointChunk>* writer) {
+  CELLFLOW_AUTHORIZE(context, caller)
+  return to_grpc(jobs_.fetch_checkpoint(*request, [&](const v1::CheckpointChunk& chunk) {
+    return !context->IsCancelled() && writer->Write(chunk);
+  }));
+}
+
 grpc::Status WorkerServiceImpl::FinishJob(grpc::ServerContext* context, const v1::FinishJobRequest* request,
                                           v1::FinishJobResponse* response) {
   CELLFLOW_AUTHORIZE(context, caller)

@@ -62,6 +62,10 @@ class WorkerServiceImpl final : public v1::WorkerService::Service {
                           v1::FinishJobResponse* response) override;
   grpc::Status FetchMesh(grpc::ServerContext* context, const v1::FetchMeshRequest* request,
                          grpc::ServerWriter<v1::MeshChunk>* writer) override;
+  grpc::Status UploadCheckpoint(grpc::ServerContext* context, grpc::ServerReader<v1::CheckpointChunk>* reader,
+                                v1::UploadCheckpointResponse* response) override;
+  grpc::Status FetchCheckpoint(grpc::ServerContext* context, const v1::FetchCheckpointRequest* request,
+                               grpc::ServerWriter<v1::CheckpointChunk>* writer) override;
 
  private:
   JobService& jobs_;

@@ -188,6 +188,7 @@ JobService::JobService(Store& store, Notifier& notifier, JobServiceOptions optio
   if (!options_.now_ms) options_.now_ms = system_now_ms;
   std::error_code error;
   fs::create_directories(options_.data_dir / "results", error);
+  fs::create_directories(options_.data_dir / "checkpoints", error);
 }
 
 fs::path JobService::result_path(std::int64_t job_id) const {
@@ -203,7 +204,10 @@ fs::path JobService::upload_path(const v1::Lease& lease) const {
 }
 
 void JobService::published(const v1::Job& job) {
-  if (auto id = parse_job_name(job.id())) notifier_.publish(*id, job.last_sequence());
+  auto id = parse_job_name(job.id());
+  if (!id) return;
+  notifier_.publish(*id, job.last_sequence());
+  if (is_terminal(job.state())) remove_checkpoint(*id);  // no attempt can resume any more
   // A child's change appended a ChildUpdate to its study: wake the study's watchers.
   if (job.parent_job_id().empty()) return;
   if (auto parent = parse_job_name(job.parent_job_id())) {
@@ -289,7 +293,8 @@ void JobService::remove_uploads(std::int64_t job_id) {
 
 int JobService::remove_all_uploads() {
   int removed = 0;
-  for (const fs::path& dir : {options_.data_dir / "results", options_.data_dir / "meshes"}) {
+  for (const fs::path& dir :
+       {options_.data_dir / "results", options_.data_dir / "meshes", options_.data_dir / "checkpoints"}) {
     std::error_code error;
     for (fs::directory_iterator it(dir, error), end; !error && it != end; it.increment(error)) {
       if (it->path().filename().string().ends_with(".part")) {
@@ -321,6 +326,7 @@ Status JobService::delete_job(const std::string& job_id, const Identity& caller)
     std::error_code error;
     fs::remove(result_path(removed), error);
     remove_uploads(removed);
+    remove_checkpoint(removed);
     std::lock_guard lock(sample_bounds_mutex_);
     sample_bounds_.erase(removed);
   }
@@ -638,6 +644,7 @@ StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& requ
         response.mutable_lease()->set_attempt(c.job.attempt());
         *response.mutable_spec() = c.job.spec();
         response.set_last_delivered_sample_index(c.last_delivered_sample_index);
+        if (auto id = parse_job_name(c.job.id())) describe_checkpoint(*id, response);
         return response;
       }
     }

@@ -45,6 +45,10 @@ struct JobServiceOptions {
   std::int64_t upload_slack_bytes = 64LL << 20;
   double max_run_time_s = 0.0;                   // > 0: an attempt leased longer ago loses its lease
   int max_study_points = jobs::kMaxStudyPoints;  // children of one study (SubmitJob of a StudySpec)
+  // A checkpoint upload may be at most this large; 0: the result upload's
+  // limit (upload_memory_factor x the job's memory estimate + upload_slack_bytes;
+  // a flow checkpoint holds the lattice populations, below the estimate).
+  std::int64_t max_checkpoint_bytes = 0;
 };
 
 // Valid UTF-8 of at most max_bytes: invalid sequences become U+FFFD, the end
@@ -109,6 +113,15 @@ class JobService {
   // The bytes of a mesh the leased job's spec names, in chunks.
   Status fetch_mesh(const v1::FetchMeshRequest& request,
                     const std::function<bool(const v1::MeshChunk&)>& send);
+  // Checkpoints of running flow jobs (server/job_service_checkpoints.cc):
+  // an upload under a per-attempt temporary name, bounded; committed (fenced)
+  // it replaces checkpoints/job-N.ckpt atomically.
+  StatusOr<std::unique_ptr<ResultUpload>> begin_checkpoint_upload(const v1::Lease& lease);
+  StatusOr<std::int64_t> commit_checkpoint(const v1::Lease& lease, const v1::CheckpointInfo& info,
+                                           ResultUpload& upload);
+  Status fetch_checkpoint(const v1::FetchCheckpointRequest& request,
+                          const std::function<bool(const v1::CheckpointChunk&)>& send);
+  std::filesystem::path checkpoint_path(std::int64_t job_id) const;
 
   // --- housekeeping (the server's Asio timers and shutdown) ---
   // Requeues or fails jobs whose lease expired; returns how many changed.
@@ -153,6 +166,11 @@ class JobService {
   std::int64_t max_sample_index(std::int64_t job_id);
   // Removes the uploads of every attempt of the job (after its lease is gone).
   void remove_uploads(std::int64_t job_id);
+  std::filesystem::path checkpoint_upload_path(const v1::Lease& lease) const;
+  // LeaseJobResponse.checkpoint from the job's record, if its file is there.
+  void describe_checkpoint(std::int64_t job_id, v1::LeaseJobResponse& response);
+  // The job's checkpoint file, its record and any checkpoint upload (a terminal or deleted job).
+  void remove_checkpoint(std::int64_t job_id);
 
   Store& store_;
   Notifier& notifier_;

@@ -178,6 +178,9 @@ int main(int argc, char** argv) {
   app.add_option("--max-mesh-bytes", options.max_mesh_bytes, "largest mesh UploadMesh accepts")
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
+  app.add_option("--max-checkpoint-bytes", options.max_checkpoint_bytes,
+                 "largest checkpoint UploadCheckpoint accepts (0: 4 x the job's memory estimate + 64 MiB)")
+      ->capture_default_str();
   app.add_option("--max-run-time-s", options.max_run_time_s,
                  "an attempt running longer loses its lease, heartbeats or not (0: no limit)")
       ->capture_default_str()

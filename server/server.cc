@@ -285,6 +285,7 @@ int run_server(const ServerOptions& options) {
   service_options.max_mesh_bytes =
       static_cast<std::uint64_t>(std::max<std::int64_t>(options.max_mesh_bytes, 0));
   service_options.max_run_time_s = options.max_run_time_s;
+  service_options.max_checkpoint_bytes = std::max<std::int64_t>(options.max_checkpoint_bytes, 0);
   JobService jobs(**store, notifier, service_options);
   // Authentication: one verdict per call from each listener's interceptor.
   const AuthMode auth_mode = options.auth == "none" ? AuthMode::kNone : AuthMode::kToken;

@@ -40,6 +40,7 @@ struct ServerOptions {
   std::string executor = "local";
   SlurmExecutorOptions slurm;        // sbatch/squeue, cap, partition, sbatch_args, timing
   SlurmWorkerSettings slurm_worker;  // the command line of the workers it submits
+  std::int64_t max_checkpoint_bytes = 0;     // UploadCheckpoint size limit; 0: the result upload's limit
 };
 
 // Runs until SIGINT/SIGTERM; returns the process exit code (0 after a clean

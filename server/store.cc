@@ -79,6 +79,17 @@ ALTER TABLE jobs ADD COLUMN child_index INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE jobs ADD COLUMN child_count INTEGER NOT NULL DEFAULT 0;
 CREATE INDEX jobs_by_parent ON jobs (parent_id, state);
 )sql",
+    // 4: checkpoints of running flow jobs; the file is checkpoints/job-N.ckpt.
+    R"sql(
+CREATE TABLE checkpoints (
+  job_id INTEGER PRIMARY KEY REFERENCES jobs (id),
+  attempt INTEGER NOT NULL,
+  time_step INTEGER NOT NULL,
+  last_sample_index INTEGER NOT NULL,
+  size_bytes INTEGER NOT NULL,
+  time_ms INTEGER NOT NULL
+);
+)sql",
 };
 
 // The request_id column of schema 2: owner, U+001F, the client's request id.
@@ -1033,7 +1044,9 @@ Status Store::delete_job(std::int64_t job_id, std::vector<std::int64_t>* deleted
   }
   // A terminal study has only terminal children (it ends after its last child).
   for (const char* sql : {"DELETE FROM events WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
+                          "DELETE FROM checkpoints WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
                           "DELETE FROM jobs WHERE parent_id = ?1", "DELETE FROM events WHERE job_id = ?1",
+                          "DELETE FROM checkpoints WHERE job_id = ?1",
                           "DELETE FROM jobs WHERE id = ?1"}) {
     Stmt remove(writer_, sql);
     remove.bind(1, job_id);
@@ -1161,6 +1174,61 @@ std::int64_t Store::count_tokens(bool include_revoked) {
   Stmt stmt(r.get(), include_revoked ? "SELECT COUNT(*) FROM tokens"
                                      : "SELECT COUNT(*) FROM tokens WHERE revoke_ms IS NULL");
   return stmt.step() == SQLITE_ROW ? stmt.int64(0) : -1;
+}
+
+// --- checkpoints ---
+
+Status Store::save_checkpoint(std::int64_t job_id, const std::string& lease_token,
+                              const CheckpointRecord& record, const std::function<Status()>& before_commit) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  auto check = lease_state(writer_, job_id, lease_token);
+  if (!check.ok()) return check.status();
+  if (*check != LeaseCheck::kValid) return lease_status(*check);
+  Stmt upsert(writer_,
+              "INSERT INTO checkpoints (job_id, attempt, time_step, last_sample_index, size_bytes, time_ms) "
+              "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (job_id) DO UPDATE SET attempt = excluded.attempt, "
+              "time_step = excluded.time_step, last_sample_index = excluded.last_sample_index, "
+              "size_bytes = excluded.size_bytes, time_ms = excluded.time_ms");
+  upsert.bind(1, job_id)
+      .bind(2, record.attempt)
+      .bind(3, record.time_step)
+      .bind(4, record.last_sample_index)
+      .bind(5, record.size_bytes)
+      .bind(6, record.time_ms);
+  if (upsert.step() != SQLITE_DONE) return sqlite_error(writer_, "save checkpoint");
+  if (before_commit) {
+    if (Status s = before_commit(); !s.ok()) return s;
+  }
+  return txn.commit();
+}
+
+StatusOr<std::optional<CheckpointRecord>> Store::checkpoint(std::int64_t job_id) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  Stmt stmt(
+      r.get(),
+      "SELECT attempt, time_step, last_sample_index, size_bytes, time_ms FROM checkpoints WHERE job_id = ?");
+  stmt.bind(1, job_id);
+  const int rc = stmt.step();
+  if (rc == SQLITE_DONE) return std::optional<CheckpointRecord>();
+  if (rc != SQLITE_ROW) return sqlite_error(r.get(), "checkpoint");
+  CheckpointRecord record;
+  record.attempt = static_cast<int>(stmt.int64(0));
+  record.time_step = stmt.int64(1);
+  record.last_sample_index = static_cast<int>(stmt.int64(2));
+  record.size_bytes = stmt.int64(3);
+  record.time_ms = stmt.int64(4);
+  return std::optional<CheckpointRecord>(record);
+}
+
+Status Store::delete_checkpoint(std::int64_t job_id) {
+  std::lock_guard lock(write_mutex_);
+  Stmt remove(writer_, "DELETE FROM checkpoints WHERE job_id = ?");
+  remove.bind(1, job_id);
+  if (remove.step() != SQLITE_DONE) return sqlite_error(writer_, "delete checkpoint");
+  return {};
 }
 
 }  // namespace cellflow::server

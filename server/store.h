@@ -59,6 +59,15 @@ enum class LeaseCheck {
   kLost,       // expired and re-leased, or finished: the worker must stop
 };
 
+// The job's last checkpoint (one per job).
+struct CheckpointRecord {
+  int attempt = 0;
+  std::int64_t time_step = 0;
+  int last_sample_index = -1;
+  std::int64_t size_bytes = 0;
+  std::int64_t time_ms = 0;
+};
+
 struct Claim {
   v1::Job job;
   std::string lease_token;
@@ -83,7 +92,7 @@ struct ReportOutcome {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 3;
+  static constexpr int kSchemaVersion = 4;
 
   static StatusOr<std::unique_ptr<Store>> open(const StoreOptions& options);
   ~Store();
@@ -205,6 +214,15 @@ class Store {
   // were revoked now.
   StatusOr<int> revoke_tokens(std::int64_t id, const std::string& user, std::int64_t now_ms);
   std::int64_t count_tokens(bool include_revoked = false);
+
+  // --- checkpoints of running flow jobs (schema 3; files: JobService) ---
+  // Records the attempt's checkpoint in place of the job's previous one, only
+  // while `lease_token` holds the job (the fence); `before_commit` moves the
+  // file into place inside the transaction. kFailedPrecondition: lease lost.
+  Status save_checkpoint(std::int64_t job_id, const std::string& lease_token, const CheckpointRecord& record,
+                         const std::function<Status()>& before_commit);
+  StatusOr<std::optional<CheckpointRecord>> checkpoint(std::int64_t job_id);
+  Status delete_checkpoint(std::int64_t job_id);
 
  private:
   explicit Store(StoreOptions options);

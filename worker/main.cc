@@ -35,6 +35,11 @@ int main(int argc, char** argv) {
   app.add_option("--library-dir", options.library_dir,
                  "fit jobs: the curve library's cache directory (default $CELLFLOW_LIBRARY_DIR, "
                  "$XDG_CACHE_HOME/cellflow/curves or ~/.cache/cellflow/curves)");
+  app.add_option("--checkpoint-interval-s", options.checkpoint_interval_s,
+                 "flow jobs: upload a checkpoint after this much wall time (at the next sample; 0: never); "
+                 "a re-leased job resumes from its last checkpoint")
+      ->check(CLI::Range(0.0, 1e9))
+      ->capture_default_str();
   app.add_flag("--keep-results", options.keep_results, "keep the local copy of uploaded results");
   std::string token_file, tls_ca, tls_cert, tls_key;
   app.add_option("--token-file", token_file,

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "rpc/rpc.h"
+#include "worker/checkpoints.h"
 #include "worker/job_runner.h"
 #include "worker/reporter.h"
 
@@ -273,6 +274,8 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     reporter.send(std::move(report));
   };
   events.should_stop = [&] { return reporter.should_stop() || stop_.load(); };
+  // Stopping to hand the job back: a flow job first checkpoints at its next sample.
+  events.checkpoint_before_stop = [&] { return stop_.load() && !reporter.should_stop(); };
 
   const std::string stem = job + ".attempt-" + std::to_string(lease.attempt());
   const fs::path temporary = fs::path(options_.scratch_dir) / (stem + ".h5.tmp");
@@ -282,6 +285,44 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   run_options.threads = options_.threads;
   run_options.debug_delay_per_point_ms = options_.debug_delay_per_point_ms;
   run_options.library_dir = options_.library_dir;
+  // Checkpoint and restart (flow jobs; other scenes ignore it).
+  const fs::path checkpoint = fs::path(options_.scratch_dir) / (stem + ".ckpt");
+  const fs::path resume = fs::path(options_.scratch_dir) / (stem + ".resume.ckpt");
+  if (options_.checkpoint_interval_s > 0.0) {
+    run_options.checkpoint_interval_s = options_.checkpoint_interval_s;
+    run_options.checkpoint_path = checkpoint.string();
+  }
+  if (leased.has_checkpoint()) {
+    const v1::CheckpointInfo& info = leased.checkpoint();
+    const auto fetch_started = Clock::now();
+    if (Status fetched = fetch_checkpoint(*stub_, lease, info, resume.string()); fetched.ok()) {
+      run_options.resume_path = resume.string();
+      spdlog::info(
+          "{}: resuming from the checkpoint of attempt {} after step {} (sample {}, {} bytes, "
+          "fetched in {:.2f} s)",
+          job, info.attempt(), info.time_step(), info.last_sample_index(), info.size_bytes(),
+          std::chrono::duration<double>(Clock::now() - fetch_started).count());
+    } else {
+      spdlog::warn("{}: checkpoint not fetched ({}); running from the start", job, fetched.to_string());
+    }
+  }
+  events.checkpoint_written = [&](const jobs::CheckpointWritten& written) {
+    if (!written.error.empty()) {
+      spdlog::warn("{}: checkpoint not written: {}", job, written.error);
+      return;
+    }
+    const auto upload_started = Clock::now();
+    const Status uploaded = upload_checkpoint(*stub_, lease, written);
+    const double upload_s = std::chrono::duration<double>(Clock::now() - upload_started).count();
+    if (uploaded.ok()) {
+      spdlog::info(
+          "{}: checkpoint after step {} (sample {}): {} bytes, written in {:.3f} s, uploaded in {:.3f} s",
+          job, written.time_step, written.last_sample_index, written.bytes, written.seconds, upload_s);
+    } else {
+      spdlog::warn("{}: checkpoint after step {} not uploaded: {}", job, written.time_step,
+                   uploaded.to_string());
+    }
+  };
   // The spec runs with its uploaded mesh's bytes; the result records the spec as leased.
   v1::JobSpec spec = leased.spec();
   RunOutcome outcome;
@@ -290,11 +331,19 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   } else {
     outcome.status = fetched;
   }
+  if (outcome.resumed_from_step >= 0) {
+    spdlog::info("{}: resumed after step {}", job, outcome.resumed_from_step);
+  } else if (!outcome.resume_refused.empty()) {
+    spdlog::warn("{}: {}; ran from the start", job, outcome.resume_refused);
+  }
 
   // Every sample reaches the server before the attempt ends.
   reporter.close(ttl);
   std::error_code ignored;
   auto cleanup = [&] {
+    fs::remove(checkpoint, ignored);
+    fs::remove(checkpoint.string() + ".tmp", ignored);
+    fs::remove(resume, ignored);
     fs::remove(temporary, ignored);
     if (!options_.keep_results) fs::remove(result, ignored);
   };

@@ -34,6 +34,10 @@ struct WorkerOptions {
   // server's worker listener; see worker/main.cc for where they come from.
   rpc::ChannelOptions channel;
   std::string library_dir;  // fit jobs' curve library; empty: jobs::default_library_dir()
+  // Flow jobs: a checkpoint at the first sample step after each interval of
+  // wall time, uploaded to the server (UploadCheckpoint); a re-leased attempt
+  // resumes from the last one. 0: no checkpoints.
+  double checkpoint_interval_s = 300.0;
 };
 
 class Worker {

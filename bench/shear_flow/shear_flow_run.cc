@@ -3,6 +3,12 @@
 //   shear_flow_run ca=0.2 cpr=6 vertices=1000 box=10,15,5 re=0.1 tau=1
 //                  float=1 kernel=peskin4 max_strain=40 tol=2e-3 window=2
 //                  sample=0.1 nu=0.48 threads=0 every=1 ratio=2 offset=0.5
+//                  checkpoint=PATH checkpoint_every_s=300 resume=PATH
+// checkpoint=PATH writes a checkpoint at the first sample after each
+// checkpoint_every_s of wall time (0: at every sample) and prints its cost
+// against the time step; resume=PATH resumes from one.
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -70,6 +76,30 @@ int main(int argc, char** argv) {
         s.tank_treading_frequency_per_s, s.volume_m3);
     std::fflush(stdout);
   };
+  int checkpoints = 0;
+  double checkpoint_s = 0.0, checkpoint_max_s = 0.0;
+  std::uint64_t checkpoint_bytes = 0;
+  if (args.count("checkpoint")) {
+    using Clock = std::chrono::steady_clock;
+    const double every_s = get("checkpoint_every_s", 300.0);
+    cb.checkpointing.write_path = args["checkpoint"];
+    cb.checkpointing.due = [every_s, last = Clock::now()]() mutable {
+      if (std::chrono::duration<double>(Clock::now() - last).count() < every_s) return false;
+      last = Clock::now();
+      return true;
+    };
+    cb.checkpointing.on_written = [&](const scenes::ShearFlowCheckpointWritten& w) {
+      if (!w.status.ok()) {
+        std::printf("checkpoint failed: %s\n", w.status.to_string().c_str());
+        return;
+      }
+      ++checkpoints;
+      checkpoint_s += w.seconds;
+      checkpoint_max_s = std::max(checkpoint_max_s, w.seconds);
+      checkpoint_bytes = w.bytes;
+    };
+  }
+  if (args.count("resume")) cb.checkpointing.resume_path = args["resume"];
   const scenes::ShearFlowResult r = scenes::run_shear_flow(p, cb);
   const scenes::ShearFlowSetup& s = r.setup;
   std::printf("status %s\nstop %s\n", r.status.to_string().c_str(),
@@ -92,6 +122,18 @@ int main(int argc, char** argv) {
       scenes::small_ca_taylor_deformation(s.capillary_number),
       scenes::small_ca_inclination_deg_lambda1(s.capillary_number));
   std::printf("thickness / kernel %.2f\n", r.thickness_over_kernel);
+  if (r.resumed_from_step >= 0)
+    std::printf("resumed after step %lld\n", static_cast<long long>(r.resumed_from_step));
+  if (!r.resume_refused.empty()) std::printf("resume refused: %s\n", r.resume_refused.c_str());
+  if (checkpoints > 0) {
+    const double step_s = r.wall_time_s / static_cast<double>(std::max<std::int64_t>(r.time_steps, 1));
+    std::printf(
+        "checkpoints %d of %.1f MB: mean %.3f s (max %.3f s) each = %.1f time steps of %.2f ms; "
+        "%.2f %% of the run's wall time\n",
+        checkpoints, static_cast<double>(checkpoint_bytes) / 1e6, checkpoint_s / checkpoints,
+        checkpoint_max_s, checkpoint_s / checkpoints / step_s, 1e3 * step_s,
+        100.0 * checkpoint_s / r.wall_time_s);
+  }
   for (const std::string& w : r.warnings) std::printf("warning: %s\n", w.c_str());
   return r.status.ok() ? 0 : 1;
 }

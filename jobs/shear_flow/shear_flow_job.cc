@@ -1,6 +1,10 @@
 #include "jobs/shear_flow/shear_flow_job.h"
 
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -12,6 +16,24 @@
 
 namespace cellflow::jobs {
 namespace {
+
+// FNV-1a 64 of the spec's deterministic serialisation: the identity a
+// checkpoint carries, so that a checkpoint of another spec is refused.
+std::uint64_t spec_hash(const v1::JobSpec& spec) {
+  std::string bytes;
+  {
+    google::protobuf::io::StringOutputStream stream(&bytes);
+    google::protobuf::io::CodedOutputStream coded(&stream);
+    coded.SetSerializationDeterministic(true);
+    spec.SerializeToCodedStream(&coded);
+  }
+  std::uint64_t hash = 0xcbf29ce484222325ULL;
+  for (unsigned char c : bytes) {
+    hash ^= c;
+    hash *= 0x100000001b3ULL;
+  }
+  return hash;
+}
 
 // Writes one shear-flow run: the mesh connectivity once, the cell positions
 // at each snapshot, every deformation sample as time series, the fluid
@@ -158,12 +180,22 @@ class ShearFlowJob final : public PreparedJob {
   // setup.lattice_bytes), the largest of the transient per-node buffers in
   // double (the Couette start profile, 2 values; the velocity field update
   // after it and the fluid velocity snapshots, 3 values each, one at a
-  // time), and the cell mesh at the quasi-static rate per vertex.
+  // time), the snapshot positions a checkpointed run keeps (a fixed
+  // budget), and the cell mesh at the quasi-static rate per vertex.
   std::int64_t memory_bytes() const override {
     const scenes::ShearFlowSetup& setup = planned_.setup();
     const double nodes = static_cast<double>(setup.nx) * setup.ny * setup.nz;
     const double transient_values = 3.0;
-    const double bytes = static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0;
+    // A checkpointed run keeps the snapshot positions, up to a fixed budget.
+    const auto& numerics = planned_.params().numerics;
+    const double frames = numerics.snapshot_every_strain > 0.0
+                              ? numerics.max_strain / numerics.snapshot_every_strain + 2.0
+                              : 0.0;
+    const double kept_snapshots =
+        std::min(frames * static_cast<double>(cell_vertex_bound(planned_.params().cell)) * 3.0 * 8.0,
+                 static_cast<double>(scenes::kMaxCheckpointSnapshotBytes));
+    const double bytes =
+        static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0 + kept_snapshots;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18)) +
            cell_vertex_bound(planned_.params().cell) * kBytesPerVertex;
   }
@@ -189,12 +221,40 @@ class ShearFlowJob final : public PreparedJob {
     FlowRecorder recorder(writer->get(), planned.setup(), planned.params().numerics.max_strain, events);
     recorder.write_setup();
     if (events.progress) events.progress(0.0, "meshing");
-    const scenes::ShearFlowResult result = scenes::run_shear_flow(planned, recorder.callbacks());
+    scenes::ShearFlowCallbacks callbacks = recorder.callbacks();
+    add_checkpointing(callbacks, spec, options, events);
+    const scenes::ShearFlowResult result = scenes::run_shear_flow(planned, callbacks);
     const Status written = recorder.finish(result);
     outcome = outcome_of(result.status, written, recorder.samples());
+    outcome.resumed_from_step = result.resumed_from_step;
+    outcome.resume_refused = result.resume_refused;
     if (outcome.status.ok() && events.progress)
       events.progress(1.0, std::string(scenes::stop_name(result.stop)));
     return outcome;
+  }
+
+  // Checkpoints every options.checkpoint_interval_s of wall time; resume from options.resume_path.
+  static void add_checkpointing(scenes::ShearFlowCallbacks& callbacks, const v1::JobSpec& spec,
+                                const RunOptions& options, const JobEvents& events) {
+    scenes::ShearFlowCheckpointing& ck = callbacks.checkpointing;
+    ck.spec_hash = spec_hash(spec);
+    ck.resume_path = options.resume_path;
+    if (options.checkpoint_interval_s > 0.0 && !options.checkpoint_path.empty()) {
+      using Clock = std::chrono::steady_clock;
+      const auto interval = std::chrono::duration<double>(options.checkpoint_interval_s);
+      ck.write_path = options.checkpoint_path;
+      ck.due = [interval, last = Clock::now()]() mutable {
+        if (Clock::now() - last < interval) return false;
+        last = Clock::now();
+        return true;
+      };
+      if (events.checkpoint_before_stop) ck.checkpoint_before_stop = events.checkpoint_before_stop;
+      ck.on_written = [&events](const scenes::ShearFlowCheckpointWritten& w) {
+        if (events.checkpoint_written)
+          events.checkpoint_written({w.path, w.time_step, w.last_sample_index, w.bytes, w.seconds,
+                                     w.status.ok() ? std::string() : w.status.to_string()});
+      };
+    }
   }
 
   Status run_csv(const CsvSink& sink, int threads) override {

@@ -71,7 +71,7 @@ INSERT INTO jobs (request_id, spec, state, create_ms) VALUES ('old-request', x''
   }
   auto store = open();
   ASSERT_TRUE(store);
-  EXPECT_EQ(store->schema_version(), Store::kSchemaVersion);  // 1 -> 2 (owners) -> 3 (studies)
+  EXPECT_EQ(store->schema_version(), Store::kSchemaVersion);  // migrated through every version
   auto job = store->get(1);
   ASSERT_TRUE(job.ok());
   EXPECT_EQ(job->request_id(), "old-request");

@@ -934,5 +934,105 @@ TEST(JobRunnerTest, ShearFlowRunsAndWritesItsResult) {
   fs::remove(options.result_path);
 }
 
+// Checkpoints (server/job_service_checkpoints.cc): fenced by the lease,
+// replacing the previous one, announced to the next attempt, fetched by it
+// only, removed when the job ends.
+class CheckpointServiceTest : public JobServiceTest {
+ protected:
+  Status upload_checkpoint(JobService& service, const v1::Lease& lease, const std::string& bytes,
+                           std::int64_t step, int sample) {
+    auto up = service.begin_checkpoint_upload(lease);
+    if (!up.ok()) return up.status();
+    if (Status s = (*up)->write(0, bytes); !s.ok()) return s;
+    v1::CheckpointInfo info;
+    info.set_time_step(step);
+    info.set_last_sample_index(sample);
+    auto size = service.commit_checkpoint(lease, info, **up);
+    return size.ok() ? Status() : size.status();
+  }
+  StatusOr<std::string> fetch(const v1::Lease& lease, v1::CheckpointInfo* info = nullptr) {
+    v1::FetchCheckpointRequest request;
+    *request.mutable_lease() = lease;
+    std::string bytes;
+    Status s = service_->fetch_checkpoint(request, [&](const v1::CheckpointChunk& chunk) {
+      if (chunk.has_info() && info) *info = chunk.info();
+      bytes += chunk.data();
+      return true;
+    });
+    if (!s.ok()) return s;
+    return bytes;
+  }
+  fs::path stored(int job) const { return service_->checkpoint_path(job); }
+  static std::string read_text(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+};
+
+TEST_F(CheckpointServiceTest, FencedReplacedAnnouncedFetchedAndRemovedAtTheEnd) {
+  const std::string id = submit(small_compression());
+  const v1::LeaseJobResponse first = lease();
+  EXPECT_FALSE(first.has_checkpoint());
+  ASSERT_TRUE(upload_checkpoint(*service_, first.lease(), "first", 10, 1).ok());
+  EXPECT_EQ(read_text(stored(1)), "first");
+  ASSERT_TRUE(upload_checkpoint(*service_, first.lease(), "second!", 20, 2).ok());
+  EXPECT_EQ(read_text(stored(1)), "second!");  // replaced
+  // A stale token, a sample index beyond the job's range and an empty upload are refused.
+  v1::Lease stale = first.lease();
+  stale.set_lease_token("0123456789abcdef0123456789abcdef");
+  EXPECT_EQ(upload_checkpoint(*service_, stale, "forged", 30, 3).code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(upload_checkpoint(*service_, first.lease(), "x", 30, 99).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(upload_checkpoint(*service_, first.lease(), "", 30, 3).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(read_text(stored(1)), "second!");
+
+  // Handed back, leased again: the new attempt is told and fetches it; the old lease cannot.
+  v1::ReleaseJobRequest release;
+  *release.mutable_lease() = first.lease();
+  ASSERT_TRUE(service_->release(release).ok());
+  const v1::LeaseJobResponse second = lease();
+  ASSERT_TRUE(second.has_checkpoint());
+  EXPECT_EQ(second.checkpoint().size_bytes(), 7);
+  EXPECT_EQ(second.checkpoint().attempt(), first.lease().attempt());
+  EXPECT_EQ(second.checkpoint().time_step(), 20);
+  EXPECT_EQ(second.checkpoint().last_sample_index(), 2);
+  v1::CheckpointInfo info;
+  auto bytes = fetch(second.lease(), &info);
+  ASSERT_TRUE(bytes.ok()) << bytes.status().to_string();
+  EXPECT_EQ(*bytes, "second!");
+  EXPECT_EQ(info.time_step(), 20);
+  EXPECT_EQ(fetch(first.lease()).status().code(), StatusCode::kFailedPrecondition);
+
+  // The job succeeds: the checkpoint and its record are gone.
+  upload(second.lease(), kHdf5StandIn);
+  v1::FinishJobRequest finish;
+  *finish.mutable_lease() = second.lease();
+  ASSERT_TRUE(service_->finish(finish).ok());
+  EXPECT_FALSE(fs::exists(stored(1)));
+  EXPECT_FALSE(store_->checkpoint(1)->has_value());
+}
+
+TEST_F(CheckpointServiceTest, OverTheLimitRefusedAndCancelOrDeleteRemovesIt) {
+  JobServiceOptions options = service_->options();
+  options.max_checkpoint_bytes = 10;
+  JobService strict(*store_, notifier_, options);
+  v1::SubmitJobRequest request;
+  *request.mutable_spec() = small_compression();
+  const std::string id = strict.submit(request)->job().id();
+  v1::LeaseJobRequest lease_request;
+  lease_request.set_worker_id("w");
+  const v1::LeaseJobResponse leased = *strict.lease(lease_request, [] { return false; });
+  EXPECT_EQ(upload_checkpoint(strict, leased.lease(), std::string(11, 'x'), 10, 1).code(),
+            StatusCode::kResourceExhausted);
+  EXPECT_FALSE(fs::exists(stored(1)));
+  ASSERT_TRUE(upload_checkpoint(strict, leased.lease(), std::string(10, 'x'), 10, 1).ok());
+  EXPECT_TRUE(fs::exists(stored(1)));
+  ASSERT_TRUE(strict.cancel(id).ok());
+  EXPECT_FALSE(fs::exists(stored(1)));
+  EXPECT_FALSE(store_->checkpoint(1)->has_value());
+  ASSERT_TRUE(strict.delete_job(id).ok());  // no row left to block the delete
+  for (const auto& entry : fs::directory_iterator(dir_ / "checkpoints"))
+    ADD_FAILURE() << "left behind: " << entry.path();
+}
+
 }  // namespace
 }  // namespace cellflow::server

@@ -263,6 +263,32 @@ class FakeWorkerStub final : public v1::WorkerService::StubInterface {
                                                                             grpc::CompletionQueue*) override {
     return nullptr;
   }
+  // The fake's jobs are no flow jobs and announce no checkpoint: the worker
+  // neither uploads nor fetches one.
+  grpc::ClientWriterInterface<v1::CheckpointChunk>* UploadCheckpointRaw(
+      grpc::ClientContext*, v1::UploadCheckpointResponse*) override {
+    return nullptr;
+  }
+  grpc::ClientAsyncWriterInterface<v1::CheckpointChunk>* AsyncUploadCheckpointRaw(
+      grpc::ClientContext*, v1::UploadCheckpointResponse*, grpc::CompletionQueue*, void*) override {
+    return nullptr;
+  }
+  grpc::ClientAsyncWriterInterface<v1::CheckpointChunk>* PrepareAsyncUploadCheckpointRaw(
+      grpc::ClientContext*, v1::UploadCheckpointResponse*, grpc::CompletionQueue*) override {
+    return nullptr;
+  }
+  grpc::ClientReaderInterface<v1::CheckpointChunk>* FetchCheckpointRaw(
+      grpc::ClientContext*, const v1::FetchCheckpointRequest&) override {
+    return nullptr;
+  }
+  grpc::ClientAsyncReaderInterface<v1::CheckpointChunk>* AsyncFetchCheckpointRaw(
+      grpc::ClientContext*, const v1::FetchCheckpointRequest&, grpc::CompletionQueue*, void*) override {
+    return nullptr;
+  }
+  grpc::ClientAsyncReaderInterface<v1::CheckpointChunk>* PrepareAsyncFetchCheckpointRaw(
+      grpc::ClientContext*, const v1::FetchCheckpointRequest&, grpc::CompletionQueue*) override {
+    return nullptr;
+  }
 
   std::shared_ptr<FakeServer> server_;
 };

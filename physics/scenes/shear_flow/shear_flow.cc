@@ -22,6 +22,7 @@
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
+#include "physics/scenes/shear_flow/shear_flow_checkpoint.h"
 #include "physics/scenes/shear_flow/shear_flow_internal.h"
 #include "physics/units/units.h"
 
@@ -45,6 +46,10 @@ constexpr double kTankTreadBand = 0.7;
 constexpr std::size_t kParallelVertices = 2000;
 
 void emit_positions(Run& run, double time_s, const std::vector<double>& x_lb) {
+  if (run.keep_snapshots &&
+      (run.snapshots.size() + 1) * x_lb.size() * sizeof(double) <= kMaxCheckpointSnapshotBytes) {
+    run.snapshots.push_back({run.snapshot_index, time_s, x_lb});
+  }
   if (!run.callbacks->on_positions) return;
   const double dx = run.plan.units.dx_m();
   std::vector<double> positions(x_lb.size());
@@ -83,8 +88,78 @@ std::string where(const Run& run, std::int64_t step) {
          number_text(static_cast<double>(step) * run.plan.setup.shear_rate_lattice, 6) + ")";
 }
 
+}  // namespace
+
+namespace shear_flow_detail {
+
+Schedule schedule_of(const Run& run) {
+  const ShearFlowNumerics& n = run.params->numerics;
+  const ShearFlowSetup& setup = run.plan.setup;
+  Schedule schedule;
+  schedule.sample_steps =
+      std::max<std::int64_t>(1, std::llround(n.sample_every_strain * setup.steps_per_strain));
+  schedule.snapshot_steps =
+      n.snapshot_every_strain > 0.0
+          ? std::max<std::int64_t>(1, std::llround(n.snapshot_every_strain * setup.steps_per_strain))
+          : 0;
+  // The step counts in double first: the plan bounds them (kMaxLatticeNodeSteps),
+  // and a cast of a double beyond int64 would be undefined.
+  constexpr double kMaxSteps = 9e18;
+  double max_steps_real = std::ceil(n.max_strain * setup.steps_per_strain);
+  schedule.limit_stop = ShearFlowStop::kMaxStrain;
+  if (n.max_time_s > 0.0) {
+    const double time_steps = std::ceil(run.plan.units.time_to_lattice(n.max_time_s));
+    if (time_steps < max_steps_real) {
+      max_steps_real = time_steps;
+      schedule.limit_stop = ShearFlowStop::kMaxTime;
+    }
+  }
+  schedule.max_steps = static_cast<std::int64_t>(std::min(max_steps_real, kMaxSteps));
+  return schedule;
+}
+
+}  // namespace shear_flow_detail
+
+namespace {
+
+// Writes a checkpoint after `step` and tells the caller.
+void write_checkpoint_now(Run& run, ShearFlowResult& result, const lb::Fluid& fluid, std::int64_t step) {
+  const ShearFlowCheckpointing& ck = run.callbacks->checkpointing;
+  const auto t0 = std::chrono::steady_clock::now();
+  ShearFlowCheckpointWritten written;
+  written.path = ck.write_path;
+  written.time_step = step;
+  written.last_sample_index = static_cast<int>(result.samples.size()) - 1;
+  StatusOr<std::uint64_t> bytes = write_checkpoint(run, result, fluid, step, ck.spec_hash, ck.write_path);
+  if (bytes.ok()) {
+    written.bytes = *bytes;
+    result.checkpoints_written++;
+  } else {
+    written.status = bytes.status();
+  }
+  written.seconds = seconds_since(t0);
+  if (ck.on_written) ck.on_written(written);
+}
+
+// A resumed run: the recorder gets the mesh's snapshots and samples so far.
+void replay(Run& run, const ShearFlowResult& result) {
+  const ShearFlowCallbacks& cb = *run.callbacks;
+  const double dx = run.plan.units.dx_m();
+  if (cb.on_positions) {
+    for (const StoredSnapshot& snap : run.snapshots) {
+      std::vector<double> positions(snap.x_lb.size());
+      for (std::size_t i = 0; i < positions.size(); ++i) positions[i] = snap.x_lb[i] * dx;
+      cb.on_positions(snap.index, snap.time_s, positions);
+    }
+  }
+  if (cb.on_sample) {
+    for (const ShearFlowSample& s : result.samples) cb.on_sample(s);
+  }
+}
+
+// resume_step > 0: the state after that step was restored from a checkpoint.
 template <class T>
-void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
+void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t resume_step) {
   using Clock = std::chrono::steady_clock;
   const ShearFlowNumerics& n = run.params->numerics;
   const ShearFlowCallbacks& cb = *run.callbacks;
@@ -99,25 +174,13 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
   coupling::ImmersedCells& cells = run.cells;
   const coupling::ImmersedCell& cell = cells[0];  // the cell the observables follow
 
-  const std::int64_t sample_steps =
-      std::max<std::int64_t>(1, std::llround(n.sample_every_strain * setup.steps_per_strain));
-  const std::int64_t snapshot_steps =
-      n.snapshot_every_strain > 0.0
-          ? std::max<std::int64_t>(1, std::llround(n.snapshot_every_strain * setup.steps_per_strain))
-          : 0;
-  // The step counts in double first: the plan bounds them (kMaxLatticeNodeSteps),
-  // and a cast of a double beyond int64 would be undefined.
-  constexpr double kMaxSteps = 9e18;
-  double max_steps_real = std::ceil(n.max_strain * setup.steps_per_strain);
-  ShearFlowStop limit_stop = ShearFlowStop::kMaxStrain;
-  if (n.max_time_s > 0.0) {
-    const double time_steps = std::ceil(run.plan.units.time_to_lattice(n.max_time_s));
-    if (time_steps < max_steps_real) {
-      max_steps_real = time_steps;
-      limit_stop = ShearFlowStop::kMaxTime;
-    }
-  }
-  const auto max_steps = static_cast<std::int64_t>(std::min(max_steps_real, kMaxSteps));
+  const Schedule schedule = schedule_of(run);
+  const std::int64_t sample_steps = schedule.sample_steps;
+  const std::int64_t snapshot_steps = schedule.snapshot_steps;
+  const std::int64_t max_steps = schedule.max_steps;
+  const ShearFlowStop limit_stop = schedule.limit_stop;
+  const ShearFlowCheckpointing& ck = cb.checkpointing;
+  const bool checkpoints = ck.due && !ck.write_path.empty();
   // Walls: a vertex closer than half a kernel width loses force into the wall.
   const double wall_margin = 0.5 * width;
 
@@ -131,8 +194,12 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
   };
 
   std::int64_t step = 0;
-  // Sample and snapshot at t = 0.
-  {
+  bool stop_pending = false;  // stop at the next sample step, after its checkpoint
+  if (resume_step > 0) {
+    step = resume_step;
+    replay(run, result);
+  } else {
+    // Sample and snapshot at t = 0.
     const auto t0 = Clock::now();
     to_si(run);
     run.last_energy_j = elastic::elastic_energy(run.body, run.x_si.data(), coupling_threads).energy_j;
@@ -239,7 +306,21 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result) {
       emit_positions(run, time_s, cell.positions_lattice);
       emit_fluid<T>(run, fluid, run.snapshot_index, time_s);
     }
-    if (cb.should_stop && (step % sample_steps == 0 || step % 256 == 0) && cb.should_stop()) {
+    const bool sample_step = step % sample_steps == 0;
+    bool checkpointed = false;
+    if (checkpoints && sample_step && (stop_pending || ck.due())) {
+      write_checkpoint_now(run, result, fluid, step);
+      checkpointed = true;
+    }
+    if (cb.should_stop && (sample_step || step % 256 == 0) && (stop_pending || cb.should_stop())) {
+      // A stop that keeps the work (a worker shutting down, not a cancel):
+      // on to the next sample step, where a checkpoint can be taken.
+      const bool keep = checkpoints && ck.checkpoint_before_stop && ck.checkpoint_before_stop();
+      if (keep && !sample_step) {
+        stop_pending = true;
+        continue;
+      }
+      if (keep && !checkpointed) write_checkpoint_now(run, result, fluid, step);
       result.stop = ShearFlowStop::kCancelled;
       result.status = Status(StatusCode::kCancelled, "stopped on request at " + where(run, step));
       break;
@@ -341,22 +422,25 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
     result.status = Status(fluid.status().code(), prefix + "numerics: " + fluid.status().message());
     return result;
   }
-  {
-    // Steady plane Couette profile u_x(y) = u_wall (2 y / H - 1), nodes at y = j + 1/2.
-    const std::size_t nodes = fluid->num_nodes();
-    std::vector<double> ux(nodes, 0.0), zero(nodes, 0.0);
-    for (int k = 0; k < setup.nz; ++k) {
-      for (int j = 0; j < setup.ny; ++j) {
-        const double velocity = u_wall_lb * (2.0 * (j + 0.5) / setup.ny - 1.0);
-        for (int i = 0; i < setup.nx; ++i) ux[fluid->node(i, j, k)] = velocity;
+  auto start_fluid = [&] {
+    {
+      // Steady plane Couette profile u_x(y) = u_wall (2 y / H - 1), nodes at y = j + 1/2.
+      const std::size_t nodes = fluid->num_nodes();
+      std::vector<double> ux(nodes, 0.0), zero(nodes, 0.0);
+      for (int k = 0; k < setup.nz; ++k) {
+        for (int j = 0; j < setup.ny; ++j) {
+          const double velocity = u_wall_lb * (2.0 * (j + 0.5) / setup.ny - 1.0);
+          for (int i = 0; i < setup.nx; ++i) ux[fluid->node(i, j, k)] = velocity;
+        }
       }
+      lb::set_equilibrium(*fluid, {}, ux, zero, zero);
     }
-    lb::set_equilibrium(*fluid, {}, ux, zero, zero);
-  }
-  // After the start profile's two per-node buffers are freed: this one holds
-  // three of its own (the job's memory estimate counts the larger set, not
-  // both; together they overran it by 3 doubles per node, spec fuzzer).
-  lb::update_velocity_field(*fluid);
+    // After the start profile's two per-node buffers are freed: this one holds
+    // three of its own (the job's memory estimate counts the larger set, not
+    // both; together they overran it by 3 doubles per node, spec fuzzer).
+    lb::update_velocity_field(*fluid);
+  };
+  start_fluid();
 
   // Vertices at the box centre (lattice units).
   const double centre[3] = {0.5 * setup.nx, 0.5 * setup.ny, 0.5 * setup.nz};
@@ -372,10 +456,40 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
   run.tank_angle.assign(run.tank_vertices.size(), 0.0);
   run.tank_unwrapped.assign(run.tank_vertices.size(), 0.0);
 
+  // Checkpoint and restart (shear_flow_checkpoint.h).
+  const ShearFlowCheckpointing& ck = callbacks.checkpointing;
+  run.keep_snapshots = ck.due && !ck.write_path.empty();
+  std::int64_t resume_step = 0;
+  if (!ck.resume_path.empty()) {
+    StatusOr<std::int64_t> resumed =
+        read_checkpoint(ck.resume_path, ck.spec_hash, schedule_of(run), run, result, *fluid);
+    if (resumed.ok()) {
+      resume_step = *resumed;
+      result.resumed_from_step = resume_step;
+      if (n.snapshot_every_strain > 0.0 &&
+          run.snapshots.size() < static_cast<std::size_t>(run.snapshot_index) + 1) {
+        result.warnings.push_back(
+            "resumed from the checkpoint after time step " + std::to_string(resume_step) + ": " +
+            std::to_string(run.snapshot_index + 1 - run.snapshots.size()) +
+            " position frames before it (beyond the checkpoint's frame budget) are not in "
+            "this result");
+      }
+      if (n.fluid_snapshots && n.snapshot_every_strain > 0.0) {
+        result.warnings.push_back("resumed from the checkpoint after time step " +
+                                  std::to_string(resume_step) +
+                                  ": the fluid velocity frames before it are not in this result");
+      }
+    } else {
+      result.resume_refused = resumed.status().message();
+      result.warnings.push_back(result.resume_refused + "; the run started from step 0");
+      start_fluid();  // the populations may have been overwritten by the refused file
+    }
+  }
+
   if (n.single_precision) {
-    time_loop<float>(run, *fluid, result);
+    time_loop<float>(run, *fluid, result, resume_step);
   } else {
-    time_loop<double>(run, *fluid, result);
+    time_loop<double>(run, *fluid, result, resume_step);
   }
   summarise(run, result);
   result.wall_time_s = seconds_since(wall_start);

@@ -246,6 +246,50 @@ struct FluidVelocitySnapshot {
   std::span<const double> ux_m_per_s, uy_m_per_s, uz_m_per_s;
 };
 
+// A checkpoint written during a run (shear_flow_checkpoint.h has the format).
+struct ShearFlowCheckpointWritten {
+  Status status;               // not ok: nothing usable was written (the run goes on)
+  std::string path;            // the file, complete (written to path + ".tmp" and renamed)
+  std::int64_t time_step = 0;  // the run resumes after this step
+  int last_sample_index = -1;  // samples 0 .. last_sample_index are inside
+  std::uint64_t bytes = 0;
+  double seconds = 0.0;  // wall time the write took
+};
+
+// Checkpoint and restart. A checkpoint holds the whole state of the time loop
+// (lattice populations and the AA phase, vertex positions, the spreading
+// support, the samples so far with the steady-state window and the tank-
+// treading accumulators, the position snapshots so far); the scene has no
+// random numbers. A run resumed from it continues bit for bit as the run that
+// wrote it would have (same spec, same thread count, same binary), except the
+// fluid velocity frames before the checkpoint, which are not kept (a warning
+// says so).
+// A checkpointed run keeps the cell positions of its snapshots for the
+// checkpoints (so a resumed run's recorder gets every frame), up to this many
+// bytes; later frames are not kept, and a run resumed without them says so.
+inline constexpr std::size_t kMaxCheckpointSnapshotBytes = std::size_t{64} << 20;
+
+struct ShearFlowCheckpointing {
+  // Identifies the job (e.g. a hash of its spec); a checkpoint written under
+  // another value is refused.
+  std::uint64_t spec_hash = 0;
+  // Non-empty: resume from this file. It is hostile input: every size is
+  // bounded, the dimensions must match this run, the checksums must hold; a
+  // refused file means a run from step 0, with the reason in
+  // ShearFlowResult::resume_refused and a warning.
+  std::string resume_path;
+  // Polled at every sample step (after the sample and the snapshot); true:
+  // write a checkpoint to write_path now. Unset or write_path empty: never.
+  std::function<bool()> due;
+  std::string write_path;
+  std::function<void(const ShearFlowCheckpointWritten&)> on_written;
+  // Polled when should_stop returns true (checkpoints enabled): true (e.g. a
+  // worker shutting down, not a cancel) makes the run go on to the next
+  // sample step, write a checkpoint there and then stop (kCancelled), so the
+  // next attempt loses nothing. Re-polled every 256 steps meanwhile.
+  std::function<bool()> checkpoint_before_stop;
+};
+
 struct ShearFlowCallbacks {
   std::function<void(const ShearFlowSample&)> on_sample;
   std::function<void(double fraction_done)> on_progress;  // 0..1
@@ -257,6 +301,10 @@ struct ShearFlowCallbacks {
   std::function<void(int index, double time_s, std::span<const double> positions_m)> on_positions;
   // At snapshot times when numerics.fluid_snapshots is set.
   std::function<void(const FluidVelocitySnapshot&)> on_fluid_velocity;
+  // A resumed run replays on_mesh, the stored snapshots (on_positions) and
+  // every stored sample (on_sample) before it steps on, so a recorder sees
+  // the whole run.
+  ShearFlowCheckpointing checkpointing;
 };
 
 inline constexpr double kMinThicknessOverKernel = 1.5;
@@ -294,6 +342,10 @@ struct ShearFlowResult {
   double thickness_over_kernel = 0.0;
   std::vector<std::string> warnings;
   std::int64_t time_steps = 0;
+  // The step this run resumed after (checkpointing.resume_path), -1: from 0.
+  std::int64_t resumed_from_step = -1;
+  std::string resume_refused;  // why the checkpoint was not used (the run started from 0)
+  int checkpoints_written = 0;
   double wall_time_s = 0.0;
   // Wall time split (seconds): elastic forces, spreading + interpolation,
   // LB collide-stream, observables.

@@ -49,6 +49,22 @@ inline double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// When the time loop samples, snapshots and stops (in lattice steps).
+struct Schedule {
+  std::int64_t sample_steps = 1;
+  std::int64_t snapshot_steps = 0;  // 0: no snapshots
+  std::int64_t max_steps = 0;
+  ShearFlowStop limit_stop = ShearFlowStop::kMaxStrain;
+};
+
+// Cell positions of one snapshot as emitted (lattice units), kept for
+// checkpoints so that a resumed run's recorder gets every frame.
+struct StoredSnapshot {
+  int index = 0;
+  double time_s = 0.0;
+  std::vector<double> x_lb;
+};
+
 // State of one run.
 struct Run {
   const ShearFlowParams* params = nullptr;
@@ -67,7 +83,12 @@ struct Run {
   double energy_limit_j = 0.0;
   double last_energy_j = 0.0;
   int snapshot_index = 0;
+  bool keep_snapshots = false;            // checkpoints are written: keep every snapshot
+  std::vector<StoredSnapshot> snapshots;  // when keep_snapshots
 };
+
+// The schedule of the run's numerics and plan (shear_flow.cc).
+Schedule schedule_of(const Run& run);
 
 // x_SI = X dx of the cell into run.x_si (shear_flow_observables.cc).
 void to_si(Run& run);

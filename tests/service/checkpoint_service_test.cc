@@ -1,0 +1,203 @@
+// Checkpoint and restart through the service (issue 16 item 4): a real
+// server, a real worker running a flow job with a checkpoint every second,
+// the worker killed with SIGKILL at about 60 % of the run (after at least one
+// checkpoint reached the server), a new worker resumes from that checkpoint.
+// The resumed run is bit-identical to an uninterrupted one (every D sample
+// and the final positions; the scene has no random numbers and the worker
+// runs on one thread like the reference), each sample index reaches the
+// watcher once, the resumed attempt computes only what was left, and the
+// checkpoint is deleted when the job succeeds.
+#include <cmath>
+#include <cstdio>
+#include <regex>
+
+#include "io/h5md.h"
+#include "jobs/job_spec.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
+#include "tests/service/service_harness.h"
+
+namespace cellflow::testing {
+namespace {
+
+// The tiny flow of service_shear_flow_test (3 nodes per radius, 15 x 18 x 12
+// nodes, 300 vertices) with the steady stop off: about 550 time steps per
+// strain unit, 0.15-0.3 s per strain unit on one core.
+v1::JobSpec checkpointed_flow(double max_strain = 16.0) {
+  v1::JobSpec spec;
+  spec.set_name("checkpointed shear flow");
+  auto* flow = spec.mutable_shear_flow();
+  flow->mutable_cell()->set_radius_m(4e-6);
+  flow->mutable_cell()->mutable_material()->set_youngs_modulus_pa(50.0);
+  flow->mutable_cell()->mutable_material()->set_poisson_ratio(0.45);
+  flow->mutable_cell()->set_target_vertex_count(300);
+  flow->set_capillary_number(0.2);
+  auto* n = flow->mutable_numerics();
+  n->set_cells_per_radius(3);
+  n->set_box_x_radii(5);
+  n->set_box_y_radii(6);
+  n->set_box_z_radii(4);
+  n->set_max_strain(max_strain);
+  n->set_sample_every_strain(0.1);
+  n->set_snapshot_every_strain(1.0);
+  n->set_steady_tolerance(0.0);
+  return spec;
+}
+
+// "finished ok (N sample(s), X s)" of the worker log: the attempt's wall time.
+double attempt_seconds(const std::string& log) {
+  std::smatch m;
+  static const std::regex finished(R"(finished ok \(\d+ sample\(s\), ([0-9.]+) s\))");
+  return std::regex_search(log, m, finished) ? std::stod(m[1]) : -1.0;
+}
+
+TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
+  // Long enough that the fixed costs (process starts, the 1 s lease expiry)
+  // are small against the run.
+  const v1::JobSpec spec = checkpointed_flow(24.0);
+
+  // The uninterrupted run in this process, on one thread as the worker.
+  auto params = jobs::to_params(spec.shear_flow());
+  ASSERT_TRUE(params.ok()) << params.status().to_string();
+  params->numerics.threads = 1;
+  std::vector<double> reference_last_frame;
+  scenes::ShearFlowCallbacks reference_callbacks;
+  reference_callbacks.on_positions = [&](int, double, std::span<const double> x) {
+    reference_last_frame.assign(x.begin(), x.end());
+  };
+  const auto reference_start = std::chrono::steady_clock::now();
+  const scenes::ShearFlowResult reference = scenes::run_shear_flow(*params, reference_callbacks);
+  const double reference_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - reference_start).count();
+  ASSERT_TRUE(reference.status.ok()) << reference.status.to_string();
+  const int total_samples = static_cast<int>(reference.samples.size());
+  ASSERT_GE(total_samples, 241);  // every 0.1 strain and the final one
+
+  start_server(0, {"--lease-ttl-s", "1"});
+  const fs::path checkpoint = dir_ / "data" / "checkpoints" / "job-1.ckpt";
+  const auto submitted = std::chrono::steady_clock::now();
+  const std::string id = submit(spec);
+  ASSERT_EQ(id, "job-1");
+  Watcher watcher(*client_, id);
+  Process* first = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
+  // Kill at 60 % of the samples, once a checkpoint is on the server.
+  ASSERT_TRUE(eventually(
+      [&] { return watcher.max_sample_index() >= (6 * total_samples) / 10 && fs::exists(checkpoint); }, 120s))
+      << "samples " << watcher.max_sample_index() << ", checkpoint " << fs::exists(checkpoint) << "\n"
+      << first->log();
+  first->signal(SIGKILL);
+  first->wait();
+  const double killed_after_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - submitted).count();
+  const int delivered_before_kill = watcher.max_sample_index();
+  EXPECT_LT(delivered_before_kill, total_samples - 1) << "the run ended before the kill";
+  EXPECT_NE(first->log().find("checkpoint after step"), std::string::npos) << first->log();
+
+  Process* second = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
+  watcher.join();
+  const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - submitted).count();
+  ASSERT_TRUE(watcher.status().ok()) << watcher.status().error_message();
+  const v1::Job job = get(id);
+  ASSERT_EQ(job.state(), v1::Job::SUCCEEDED) << job.reason();
+  EXPECT_EQ(job.attempt(), 2);
+  ASSERT_TRUE(eventually([&] { return !second->log().empty() && attempt_seconds(second->log()) > 0; }, 10s));
+  const std::string log = second->log();
+  EXPECT_NE(log.find("resuming from the checkpoint of attempt 1"), std::string::npos) << log;
+  EXPECT_NE(log.find("resumed after step"), std::string::npos) << log;
+
+  // Each sample index once, in order; every D bit-identical to the uninterrupted run.
+  std::vector<v1::DeformationSample> samples;
+  for (const v1::JobEvent& e : watcher.events())
+    if (e.has_deformation_sample()) samples.push_back(e.deformation_sample());
+  ASSERT_EQ(static_cast<int>(samples.size()), total_samples);
+  for (int i = 0; i < total_samples; ++i) {
+    EXPECT_EQ(samples[i].index(), i);
+    EXPECT_EQ(samples[i].taylor_deformation(), reference.samples[i].taylor_deformation) << "sample " << i;
+  }
+
+  // The result file: the whole run (every sample and frame), final positions equal.
+  const std::string h5 = (dir_ / "resumed.h5").string();
+  ASSERT_TRUE(client_->download(id, h5).ok());
+  auto frames = io::count_position_frames(h5, "cell");
+  ASSERT_TRUE(frames.ok()) << frames.status().to_string();
+  EXPECT_EQ(*frames, 25);  // strain 0, 1, ..., 24
+  auto last = io::read_position_frame(h5, "cell", *frames - 1);
+  ASSERT_TRUE(last.ok()) << last.status().to_string();
+  EXPECT_EQ(last->positions_m, reference_last_frame);
+
+  // The checkpoint is gone with the job's end.
+  EXPECT_FALSE(fs::exists(checkpoint));
+
+  // Work and time. The resumed attempt stepped only from the checkpoint on
+  // (a step count, immune to the load of a shared machine); the whole, with
+  // the kill, the 1 s lease expiry and two worker starts, takes well below
+  // two runs (a restart from zero: 1.6 runs of stepping and the same fixed costs).
+  std::smatch resumed;
+  ASSERT_TRUE(std::regex_search(log, resumed, std::regex(R"(resumed after step (\d+))")));
+  const std::int64_t resumed_step = std::stoll(resumed[1]);
+  // From the last checkpoint the killed worker uploaded.
+  std::int64_t last_uploaded = -1;
+  const std::string killed_log = first->log();
+  static const std::regex uploaded(R"(checkpoint after step (\d+) \(sample \d+\): \d+ bytes)");
+  for (std::sregex_iterator it(killed_log.begin(), killed_log.end(), uploaded), end; it != end; ++it)
+    last_uploaded = std::stoll((*it)[1]);
+  EXPECT_EQ(resumed_step, last_uploaded);
+  EXPECT_GT(resumed_step, 0);
+  EXPECT_LT(resumed_step, reference.time_steps);
+  const double second_attempt_s = attempt_seconds(log);
+  std::printf(
+      "checkpointed flow: uninterrupted in-process %.2f s; through the service with a SIGKILL at sample %d "
+      "of %d "
+      "(%.2f s after submit) %.2f s in all (%.2f runs); the resumed attempt stepped from %lld of %lld steps "
+      "in "
+      "%.2f s (%.2f runs)\n",
+      reference_s, delivered_before_kill, total_samples, killed_after_s, total_s, total_s / reference_s,
+      static_cast<long long>(resumed_step), static_cast<long long>(reference.time_steps), second_attempt_s,
+      second_attempt_s / reference_s);
+  EXPECT_LT(total_s, 2.0 * reference_s);
+}
+
+// SIGTERM (Slurm's warning before a time limit or a preemption): the worker
+// runs on to its next sample, uploads a checkpoint there, hands the job back;
+// the next worker resumes from it, and the result is again bit-identical.
+TEST_F(ServiceTest, StoppedFlowWorkerCheckpointsBeforeHandingTheJobBack) {
+  const v1::JobSpec spec = checkpointed_flow(8.0);
+  auto params = jobs::to_params(spec.shear_flow());
+  ASSERT_TRUE(params.ok()) << params.status().to_string();
+  params->numerics.threads = 1;
+  const scenes::ShearFlowResult reference = scenes::run_shear_flow(*params);
+  ASSERT_TRUE(reference.status.ok()) << reference.status.to_string();
+  const int total_samples = static_cast<int>(reference.samples.size());
+
+  start_server(0, {"--lease-ttl-s", "1"});
+  const std::string id = submit(spec);
+  Watcher watcher(*client_, id);
+  // No periodic checkpoint: the only one is taken at the stop.
+  Process* first = start_worker({"--threads", "1", "--checkpoint-interval-s", "1000"});
+  ASSERT_TRUE(eventually([&] { return watcher.max_sample_index() >= total_samples / 2; }, 120s))
+      << first->log();
+  first->signal(SIGTERM);
+  ASSERT_TRUE(first->wait_for(30s));
+  const std::string first_log = first->log();
+  EXPECT_NE(first_log.find("checkpoint after step"), std::string::npos) << first_log;
+  EXPECT_NE(first_log.find("handed back"), std::string::npos) << first_log;
+  EXPECT_TRUE(fs::exists(dir_ / "data" / "checkpoints" / "job-1.ckpt"));
+
+  Process* second = start_worker({"--threads", "1", "--checkpoint-interval-s", "1000"});
+  watcher.join();
+  const v1::Job job = get(id);
+  ASSERT_EQ(job.state(), v1::Job::SUCCEEDED) << job.reason();
+  ASSERT_TRUE(eventually([&] { return attempt_seconds(second->log()) > 0; }, 10s));
+  EXPECT_NE(second->log().find("resumed after step"), std::string::npos) << second->log();
+  std::vector<v1::DeformationSample> samples;
+  for (const v1::JobEvent& e : watcher.events())
+    if (e.has_deformation_sample()) samples.push_back(e.deformation_sample());
+  ASSERT_EQ(static_cast<int>(samples.size()), total_samples);
+  for (int i = 0; i < total_samples; ++i) {
+    EXPECT_EQ(samples[i].index(), i);
+    EXPECT_EQ(samples[i].taylor_deformation(), reference.samples[i].taylor_deformation) << "sample " << i;
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "data" / "checkpoints" / "job-1.ckpt"));
+}
+
+}  // namespace
+}  // namespace cellflow::testing

@@ -3,6 +3,7 @@
 #include <string>
 
 #include "jobs/common/cell_spec.h"
+#include "physics/core/violations.h"
 
 namespace cellflow::jobs {
 StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {
@@ -55,6 +56,15 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
   if (in.has_target_reynolds_number()) n.target_reynolds_number = in.target_reynolds_number();
   if (in.has_max_strain()) n.max_strain = in.max_strain();
   if (in.has_max_stiffness_ratio()) n.max_stiffness_ratio = in.max_stiffness_ratio();
+  if (in.has_hydrodynamic_radius_offset()) {
+    // Negative values are the physics layer's "kernel default"; a spec says that by leaving it unset.
+    if (!(in.hydrodynamic_radius_offset() >= 0.0)) {
+      return invalid_argument(prefix + "numerics.hydrodynamic_radius_offset = " +
+                              number_text(in.hydrodynamic_radius_offset(), 6) +
+                              " must lie in [0, 2] lattice spacings (unset: the kernel's value)");
+    }
+    n.hydrodynamic_radius_offset = in.hydrodynamic_radius_offset();
+  }
   if (in.volumetric_term() == v1::VOLUMETRIC_TERM_PER_TET) {
     n.volumetric = elastic::VolumetricTerm::kPerTet;
   } else if (in.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {

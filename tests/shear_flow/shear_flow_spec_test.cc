@@ -73,6 +73,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   n->set_target_reynolds_number(0.05);
   n->set_max_strain(12.0);
   n->set_max_stiffness_ratio(1.5);
+  n->set_hydrodynamic_radius_offset(0.25);
   n->set_volumetric_term(v1::VOLUMETRIC_TERM_NODAL_AVERAGE);
   const StatusOr<scenes::ShearFlowParams> p = to_params(spec);
   ASSERT_TRUE(p.ok()) << p.status().to_string();
@@ -104,6 +105,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   EXPECT_DOUBLE_EQ(m.target_reynolds_number, 0.05);
   EXPECT_DOUBLE_EQ(m.max_strain, 12.0);
   EXPECT_DOUBLE_EQ(m.max_stiffness_ratio, 1.5);
+  EXPECT_DOUBLE_EQ(m.hydrodynamic_radius_offset, 0.25);
   EXPECT_EQ(m.volumetric, elastic::VolumetricTerm::kNodalAverage);
 }
 
@@ -185,6 +187,12 @@ TEST(ShearFlowSpec, RefusalsNameTheField) {
        StatusCode::kInvalidArgument, "shear_flow.numerics.snapshot_every_strain"},
       {"stiffness ratio", [](v1::ShearFlowSpec& s) { s.mutable_numerics()->set_max_stiffness_ratio(-1.0); },
        StatusCode::kInvalidArgument, "shear_flow.numerics.max_stiffness_ratio"},
+      {"radius offset negative",
+       [](v1::ShearFlowSpec& s) { s.mutable_numerics()->set_hydrodynamic_radius_offset(-0.5); },
+       StatusCode::kInvalidArgument, "shear_flow.numerics.hydrodynamic_radius_offset"},
+      {"radius offset large",
+       [](v1::ShearFlowSpec& s) { s.mutable_numerics()->set_hydrodynamic_radius_offset(3.0); },
+       StatusCode::kInvalidArgument, "shear_flow.numerics.hydrodynamic_radius_offset"},
       {"memory",
        [](v1::ShearFlowSpec& s) {
          s.mutable_numerics()->set_cells_per_radius(40.0);

@@ -305,8 +305,9 @@ StatusOr<std::string> xdmf_for(const std::string& h5_path, std::string_view grou
 Status write_xdmf(const std::string& h5_path, const std::string& xdmf_path, std::string_view group) {
   const std::size_t slash = h5_path.find_last_of('/');
   const std::string base = slash == std::string::npos ? h5_path : h5_path.substr(slash + 1);
-  // "./name": the XDMF readers resolve a path with a directory part against
-  // the XDMF file's directory; a bare name the XDMF3 reader looks up elsewhere.
+  // "./name", relative: the XDMF3 reader prepends the XDMF file's directory
+  // to any relative heavy-data path (Xdmf3 XdmfCoreItemFactory::
+  // getFullHeavyDataPath); a bare name is what issue 16 saw the readers miss.
   auto xml = xdmf_for(h5_path, group, "./" + base);
   if (!xml.ok()) return xml.status();
   const std::string temporary = xdmf_path + ".tmp";

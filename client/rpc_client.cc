@@ -1,9 +1,13 @@
 #include "client/rpc_client.h"
 
+#include <pwd.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -100,7 +104,17 @@ grpc::Status Client::with_retry(const std::function<grpc::Status(grpc::ClientCon
 }
 
 grpc::Status Client::submit(const v1::SubmitJobRequest& request, v1::SubmitJobResponse* response) {
-  return with_retry([&](grpc::ClientContext& c) { return stub_->SubmitJob(&c, request, response); });
+  // The result's author: the spec's, else this user's name ($USER; the server
+  // falls back to the token's user when neither is set).
+  v1::SubmitJobRequest named = request;
+  const char* user = std::getenv("USER");
+  if (user == nullptr || *user == '\0') {
+    const passwd* entry = ::getpwuid(::getuid());  // a shell without USER: the account's name
+    user = entry != nullptr ? entry->pw_name : nullptr;
+  }
+  if (named.spec().author().empty() && user != nullptr && *user != '\0' && std::strlen(user) <= 256)
+    named.mutable_spec()->set_author(user);
+  return with_retry([&](grpc::ClientContext& c) { return stub_->SubmitJob(&c, named, response); });
 }
 
 grpc::Status Client::get(const std::string& job_id, v1::Job* job) {
@@ -177,7 +191,7 @@ grpc::Status Client::watch(const std::string& job_id, std::int64_t after_sequenc
   }
 }
 
-grpc::Status Client::download(const std::string& job_id, const std::string& path) {
+grpc::Status Client::download(const std::string& job_id, const std::string& path, v1::ResultPart part) {
   const std::string partial = path + ".part";
   rpc::Backoff backoff(250ms, 0ms);  // uncapped: 0.25, 0.5, 1 s, ...
   for (int attempt = 1;; ++attempt) {
@@ -186,6 +200,7 @@ grpc::Status Client::download(const std::string& job_id, const std::string& path
     grpc::ClientContext context;
     v1::DownloadResultRequest request;
     request.set_job_id(job_id);
+    request.set_part(part);
     auto reader = stub_->DownloadResult(&context, request);
     v1::ResultChunk chunk;
     std::int64_t received = 0;

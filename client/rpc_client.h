@@ -45,6 +45,7 @@ class Client {
   explicit Client(ClientOptions options);
   Client(ClientOptions options, std::shared_ptr<grpc::Channel> channel);
 
+  // Sets spec.author to $USER when the spec names no author.
   grpc::Status submit(const v1::SubmitJobRequest& request, v1::SubmitJobResponse* response);
   grpc::Status get(const std::string& job_id, v1::Job* job);
   grpc::Status list(const v1::ListJobsRequest& request, v1::ListJobsResponse* response);
@@ -60,8 +61,10 @@ class Client {
   // last sequence seen, so no event is seen twice.
   grpc::Status watch(const std::string& job_id, std::int64_t after_sequence,
                      const std::function<bool(const v1::JobEvent&)>& on_event);
-  // Writes the job's result file to `path` (via path.part, renamed when complete).
-  grpc::Status download(const std::string& job_id, const std::string& path);
+  // Writes the job's result file (or its XDMF sidecar, which names the file
+  // "./job-<n>.h5") to `path` (via path.part, renamed when complete).
+  grpc::Status download(const std::string& job_id, const std::string& path,
+                        v1::ResultPart part = v1::RESULT_PART_HDF5);
 
   v1::CellflowService::Stub& stub() { return *stub_; }
   const ClientOptions& options() const { return options_; }

@@ -1,20 +1,36 @@
-// Job results as HDF5 files in the H5MD 1.1 layout (https://nongnu.org/h5md/):
+// Job results as HDF5 files in the H5MD 1.1 layout (https://nongnu.org/h5md/)
+// with its units module (unit attributes in the module's syntax: "m",
+// "m s-1", "kg m-3"; a dimensionless quantity has no unit attribute):
 //
-//   /h5md                       attribute version = {1, 1}; groups author, creator
-//   /particles/<group>/box      attributes dimension = 3, boundary = none
-//   /particles/<group>/position/{step, time, value}   value: [frames][N][3], metres
-//   /connectivity/<group>       [M][4] vertex indices of the tetrahedra
+//   /h5md                       attribute version = {1, 1}; groups author
+//                               (name), creator (name, version)
+//   /h5md/modules/units         attributes version = {1, 0}, system = "SI"
+//   /particles/<group>/box      attributes dimension = 3, boundary = one of
+//                               "periodic" / "none" per axis; edges (a
+//                               time-dependent element, value [frames][3][3],
+//                               m: the edge vectors as rows, a diagonal
+//                               matrix of the box lengths) when the box has a
+//                               size (set_box), one record per position frame
+//   /particles/<group>/position/{step, time, value}   value: [frames][N][3], unit m
+//   /connectivity/<group>       [M][4] vertex indices of the tetrahedra;
+//                               attribute particles_group: an object
+//                               reference to /particles/<group>
 //   /connectivity/<group>_region  [M] region id per tetrahedron (0 cytoplasm, 1 nucleus)
-//   /observables/<name>/{step, time, value}   value: [n] or [n][width]
+//   /observables/<name>/{step, time, value}   value: [n] or [n][width],
+//                               float64 or (counts) int64
 //   /parameters/job_spec_json   the job spec (protobuf JSON mapping), a string
-//   /parameters/<name>, /summary/<name>   scalars (attribute unit) and strings
-//   /xdmf/<group>/frame_<k>     [N][3] copy of position frame k for the XDMF sidecar
-//   /fields/<name>/{step, time} one record per frame of a vector field on a
-//                               uniform grid (H5MD has no Eulerian fields: a
-//                               cellflow extension beside the H5MD groups)
-//   /fields/<name>/frame_<k>    [nz][ny][nx][3] float32, attributes step, time;
-//                               /fields/<name> attributes dimensions (nx, ny,
-//                               nz), spacing_m, origin_m (node (0, 0, 0))
+//   /parameters/<name>, /summary/<name>   scalars (attribute unit), integers and strings
+//   /fields/<name>/{step, time, value}   one H5MD-style time series of a
+//                               vector field on a uniform grid, value
+//                               [frames][nz][ny][nx][3] float32 (H5MD has no
+//                               Eulerian fields: a cellflow extension beside
+//                               the H5MD groups); /fields/<name> attributes
+//                               dimensions (nx, ny, nz), spacing_m, origin_m
+//                               (node (0, 0, 0))
+//
+// step is an integer index (time step or load point), time a float: physical
+// time in s, or, with H5mdCreator::time_unit empty, a dimensionless load
+// parameter whose meaning the time datasets' attribute "meaning" names.
 //
 // The writer is generic: frames of positions, named time series, vector
 // fields, scalars and a JSON string, so every scene (quasi-static curves,
@@ -38,9 +54,21 @@ struct H5mdCreator {
   std::string author = "cellflow";        // /h5md/author name
   std::string program = "cellflow";       // /h5md/creator name
   std::string program_version = "0.1.0";  // /h5md/creator version
-  // Unit of the "time" datasets. Quasi-static scenes have no physical time:
-  // they store the load parameter (deformation) there and say so here.
+  // Unit of the "time" datasets (H5MD units syntax); empty: dimensionless,
+  // no unit attribute. Quasi-static scenes have no physical time: they store
+  // the load parameter (deformation) there, without a unit, and say what it
+  // is in time_meaning (attribute "meaning" of every time dataset).
   std::string time_unit = "s";
+  std::string time_meaning;
+};
+
+// The simulation box of a particle group: per axis periodic or not, and its
+// edge lengths (metres) where it has a size (the flow box); without edges the
+// group lives in unbounded space (H5MD: edges only describe a box).
+struct H5mdBox {
+  bool periodic[3] = {false, false, false};
+  bool has_edges = false;
+  double edges_m[3] = {0.0, 0.0, 0.0};
 };
 
 // A node-centred grid: node (i, j, k) at origin_m + (i, j, k) spacing_m;
@@ -72,26 +100,36 @@ class H5mdWriter {
   // optional region id per tetrahedron (empty: none stored).
   Status write_tetrahedra(std::string_view group, std::span<const std::int32_t> tets,
                           std::span<const std::uint8_t> region);
-  // Appends one frame of positions (3 per particle, metres) at (step, time).
-  // Every frame of a group has the same particle count.
+  // The box of particle group `group` (before its first positions; default:
+  // boundary none on every axis, no edges).
+  Status set_box(std::string_view group, const H5mdBox& box);
+  // Appends one frame of positions (3 per particle, metres) at (step, time),
+  // and of the box edges when the box has them. Every frame of a group has
+  // the same particle count.
   Status append_positions(std::string_view group, std::int64_t step, double time,
                           std::span<const double> positions_m);
-  // Appends one record to /observables/<name>; the width (values.size()) is
-  // fixed by the first record.
+  // Appends one record to /observables/<name>; the width (values.size()) and
+  // the unit (H5MD units syntax, empty: dimensionless) are fixed by the first record.
   Status append_observable(std::string_view name, std::int64_t step, double time,
-                           std::span<const double> values);
-  Status append_observable(std::string_view name, std::int64_t step, double time, double value) {
-    return append_observable(name, step, time, std::span<const double>(&value, 1));
+                           std::span<const double> values, std::string_view unit = "");
+  Status append_observable(std::string_view name, std::int64_t step, double time, double value,
+                           std::string_view unit = "") {
+    return append_observable(name, step, time, std::span<const double>(&value, 1), unit);
   }
+  // A count (iterations, splits): an observable of int64 values, dimensionless.
+  Status append_count(std::string_view name, std::int64_t step, double time, std::int64_t value);
   // Appends one frame of the vector field /fields/<name> (three component
   // arrays of grid.nx * ny * nz values). Stored as float32: the frames are for
   // viewing, and the lattice they come from stores float by default. Every
-  // frame of a field has the grid of the first.
+  // frame of a field has the grid and unit (H5MD units syntax) of the first.
   Status append_vector_field(std::string_view name, std::int64_t step, double time, const UniformGrid& grid,
-                             std::span<const double> x, std::span<const double> y, std::span<const double> z);
+                             std::span<const double> x, std::span<const double> y, std::span<const double> z,
+                             std::string_view unit = "");
   // A scalar dataset at `path` (e.g. "/summary/steady_taylor_deformation")
-  // with an attribute unit (if not empty); a string dataset at `path`.
+  // with an attribute unit (if not empty); an int64 scalar (a count or an
+  // index, dimensionless); a string dataset at `path`.
   Status write_scalar(std::string_view path, double value, std::string_view unit = "");
+  Status write_integer(std::string_view path, std::int64_t value);
   Status write_string(std::string_view path, std::string_view value);
   // Stores the job spec JSON as /parameters/job_spec_json (written once).
   Status write_parameters_json(std::string_view json);
@@ -115,7 +153,7 @@ StatusOr<TimeSeries> read_observable(const std::string& path, std::string_view n
 StatusOr<std::vector<std::string>> list_observables(const std::string& path);
 // /parameters/job_spec_json.
 StatusOr<std::string> read_parameters_json(const std::string& path);
-// A dataset written by write_scalar / write_string.
+// A dataset written by write_scalar, write_integer (converted) or write_string.
 StatusOr<double> read_scalar(const std::string& path, std::string_view dataset);
 StatusOr<std::string> read_string(const std::string& path, std::string_view dataset);
 // Frames stored for /fields/<name> (0 when there is no such field).

@@ -1,12 +1,13 @@
 // H5mdWriter: creation of an H5MD 1.1 file (h5md, author and creator
-// metadata), tetrahedral connectivity, time-dependent elements (step, time,
-// value series) for positions and observables with the 2-D position copies
-// of the XDMF sidecar, parameters, scalars and strings, vector fields on a
-// uniform grid, flush and close.
+// metadata, the units module), tetrahedral connectivity with its object
+// reference to the particle group, the box, time-dependent elements (step,
+// time, value series) for positions, box edges, observables and vector fields
+// on a uniform grid, parameters, scalars, integers and strings, flush and close.
 #include <hdf5.h>
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -45,9 +46,9 @@ struct H5mdWriter::Impl {
   Handle file;
   H5mdCreator creator;
   std::map<std::string, Element, std::less<>> elements;  // keyed by the element's path
-  std::map<std::string, int, std::less<>> frames;        // position frames per particle group
+  std::map<std::string, H5mdBox, std::less<>> boxes;     // particle groups whose box is written
   struct Field {
-    Series step, time;
+    Series step, time, value;
     UniformGrid grid;
   };
   std::map<std::string, Field, std::less<>> fields;  // vector fields by name
@@ -80,6 +81,11 @@ StatusOr<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path
   Handle program = create_group(file, "/h5md/creator");
   if (Status s = write_string_attribute(program.get(), "name", creator.program); !s.ok()) return s;
   if (Status s = write_string_attribute(program.get(), "version", creator.program_version); !s.ok()) return s;
+  // The units module: every dimensionful dataset carries a unit attribute.
+  Handle units = create_group(file, "/h5md/modules/units");
+  const std::array<int, 2> units_version = {1, 0};
+  if (Status s = write_int_attribute(units.get(), "version", units_version); !s.ok()) return s;
+  if (Status s = write_string_attribute(units.get(), "system", "SI"); !s.ok()) return s;
   Handle observables = create_group(file, "/observables");
   Handle particles = create_group(file, "/particles");
   Handle parameters = create_group(file, "/parameters");
@@ -105,9 +111,20 @@ Status H5mdWriter::write_tetrahedra(std::string_view group, std::span<const std:
       H5Dwrite(dataset.get(), H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, tets.data()) < 0) {
     return h5_error("writing " + path, path_);
   }
-  // H5MD: a connectivity dataset names the particle group its indices refer to.
+  // H5MD: a connectivity dataset refers to its particle group by an object reference.
   const std::string particles = "/particles/" + std::string(group);
-  if (Status s = write_string_attribute(dataset.get(), "particles_group", particles); !s.ok()) return s;
+  if (!path_exists(file, particles) && !create_group(file, particles).valid())
+    return h5_error("creating " + particles, path_);
+  hobj_ref_t reference;
+  if (H5Rcreate(&reference, file, particles.c_str(), H5R_OBJECT, -1) < 0)
+    return h5_error("referencing " + particles, path_);
+  {
+    Handle scalar(H5Screate(H5S_SCALAR));
+    Handle attr(H5Acreate2(dataset.get(), "particles_group", H5T_STD_REF_OBJ, scalar.get(), H5P_DEFAULT,
+                           H5P_DEFAULT));
+    if (!attr.valid() || H5Awrite(attr.get(), H5T_STD_REF_OBJ, &reference) < 0)
+      return h5_error("writing particles_group", path_);
+  }
   if (Status s = write_string_attribute(dataset.get(), "cell_type", "tetrahedron"); !s.ok()) return s;
   if (!region.empty()) {
     if (region.size() != tets.size() / 4)
@@ -130,30 +147,51 @@ Status H5mdWriter::write_tetrahedra(std::string_view group, std::span<const std:
 
 namespace {
 
+// The step and time series of a new element at `path`: time with the
+// creator's unit (none when dimensionless) and meaning.
+Status create_step_and_time(hid_t file, const std::string& path, const H5mdCreator& creator, Series& step,
+                            Series& time) {
+  auto step_series = create_series(file, path + "/step", H5T_STD_I64LE, H5T_NATIVE_INT64, {});
+  if (!step_series.ok()) return step_series.status();
+  auto time_series = create_series(file, path + "/time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {});
+  if (!time_series.ok()) return time_series.status();
+  if (!creator.time_unit.empty()) {
+    if (Status s = write_string_attribute(time_series->dataset.get(), "unit", creator.time_unit); !s.ok())
+      return s;
+  }
+  if (!creator.time_meaning.empty()) {
+    if (Status s = write_string_attribute(time_series->dataset.get(), "meaning", creator.time_meaning);
+        !s.ok())
+      return s;
+  }
+  step = std::move(*step_series);
+  time = std::move(*time_series);
+  return {};
+}
+
+// The element at `path`, created on first use with values of `file_type` /
+// `memory_type` and `unit` (none when empty).
 StatusOr<Element*> element_for(hid_t file, std::map<std::string, Element, std::less<>>& elements,
                                const std::string& path, std::vector<hsize_t> record_dims,
-                               const std::string& time_unit) {
+                               const H5mdCreator& creator, std::string_view unit,
+                               hid_t file_type = H5T_IEEE_F64LE, hid_t memory_type = H5T_NATIVE_DOUBLE) {
   auto found = elements.find(path);
   if (found != elements.end()) return &found->second;
   Element element;
-  auto step = create_series(file, path + "/step", H5T_STD_I64LE, H5T_NATIVE_INT64, {});
-  if (!step.ok()) return step.status();
-  auto time = create_series(file, path + "/time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {});
-  if (!time.ok()) return time.status();
-  if (Status s = write_string_attribute(time->dataset.get(), "unit", time_unit); !s.ok()) return s;
+  if (Status s = create_step_and_time(file, path, creator, element.step, element.time); !s.ok()) return s;
   std::size_t width = 1;
   for (hsize_t d : record_dims) width *= d;
-  auto value =
-      create_series(file, path + "/value", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, std::move(record_dims));
+  auto value = create_series(file, path + "/value", file_type, memory_type, std::move(record_dims));
   if (!value.ok()) return value.status();
-  element.step = std::move(*step);
-  element.time = std::move(*time);
+  if (!unit.empty()) {
+    if (Status s = write_string_attribute(value->dataset.get(), "unit", unit); !s.ok()) return s;
+  }
   element.value = std::move(*value);
   element.width = width;
   return &elements.emplace(path, std::move(element)).first->second;
 }
 
-Status append_element(Element& element, std::int64_t step, double time, const double* values) {
+Status append_element(Element& element, std::int64_t step, double time, const void* values) {
   if (Status s = append_record(element.step, &step); !s.ok()) return s;
   if (Status s = append_record(element.time, &time); !s.ok()) return s;
   return append_record(element.value, values);
@@ -161,72 +199,91 @@ Status append_element(Element& element, std::int64_t step, double time, const do
 
 }  // namespace
 
+Status H5mdWriter::set_box(std::string_view group, const H5mdBox& box) {
+  if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
+  const hid_t file = impl_->file.get();
+  const std::string particles = "/particles/" + std::string(group);
+  if (impl_->boxes.count(particles) != 0)
+    return {StatusCode::kFailedPrecondition, particles + ": box already written"};
+  if (box.has_edges) {
+    for (double e : box.edges_m) {
+      if (!(e > 0.0) || !std::isfinite(e))
+        return invalid_argument("box edges: each must be positive and finite");
+    }
+  }
+  Handle group_handle = path_exists(file, particles) ? Handle(H5Gopen2(file, particles.c_str(), H5P_DEFAULT))
+                                                     : create_group(file, particles);
+  Handle box_group = create_group(file, particles + "/box");
+  if (!group_handle.valid() || !box_group.valid()) return h5_error("creating " + particles + "/box", path_);
+  const std::array<int, 1> dimension = {3};
+  if (Status s = write_int_attribute(box_group.get(), "dimension", dimension); !s.ok()) return s;
+  // boundary: a string per dimension, "periodic" or "none" (H5MD 1.1).
+  Handle type = string_type(9);
+  hsize_t dims[1] = {3};
+  Handle space(H5Screate_simple(1, dims, nullptr));
+  Handle attr(H5Acreate2(box_group.get(), "boundary", type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT));
+  char boundary[3][9] = {};
+  for (int d = 0; d < 3; ++d)
+    std::snprintf(boundary[d], sizeof boundary[d], "%s", box.periodic[d] ? "periodic" : "none");
+  if (!attr.valid() || H5Awrite(attr.get(), type.get(), boundary) < 0) return h5_error("writing box", path_);
+  impl_->boxes.emplace(particles, box);
+  return {};
+}
+
 Status H5mdWriter::append_positions(std::string_view group, std::int64_t step, double time,
                                     std::span<const double> positions_m) {
   if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
   if (positions_m.size() % 3 != 0) return invalid_argument("positions: size not a multiple of 3");
   const hid_t file = impl_->file.get();
   const std::string particles = "/particles/" + std::string(group);
-  if (!path_exists(file, particles + "/box")) {
-    Handle box = create_group(file, particles + "/box");
-    const std::array<int, 1> dimension = {3};
-    if (Status s = write_int_attribute(box.get(), "dimension", dimension); !s.ok()) return s;
-    // boundary: a string per dimension; "none" = not periodic.
-    Handle type = string_type(5);
-    hsize_t dims[1] = {3};
-    Handle space(H5Screate_simple(1, dims, nullptr));
-    Handle attr(H5Acreate2(box.get(), "boundary", type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT));
-    const char boundary[3][5] = {"none", "none", "none"};
-    if (!attr.valid() || H5Awrite(attr.get(), type.get(), boundary) < 0)
-      return h5_error("writing box", path_);
+  if (impl_->boxes.count(particles) == 0) {
+    if (Status s = set_box(group, H5mdBox{}); !s.ok()) return s;
   }
+  const H5mdBox& box = impl_->boxes.at(particles);
   auto element = element_for(file, impl_->elements, particles + "/position", {positions_m.size() / 3, 3},
-                             impl_->creator.time_unit);
+                             impl_->creator, "m");
   if (!element.ok()) return element.status();
   if ((*element)->width != positions_m.size()) {
     return invalid_argument("positions: particle count differs from the first frame");
   }
-  if (Status s = append_element(**element, step, time, positions_m.data()); !s.ok()) return s;
-
-  // The XDMF sidecar cannot address a slice without HyperSlab: keep a 2-D copy.
-  int& frame = impl_->frames[std::string(group)];
-  char name[32];
-  std::snprintf(name, sizeof name, "/frame_%06d", frame);
-  const std::string copy_path = "/xdmf/" + std::string(group) + name;
-  hsize_t dims[2] = {positions_m.size() / 3, 3};
-  Handle space(H5Screate_simple(2, dims, nullptr));
-  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
-  H5Pset_create_intermediate_group(lcpl.get(), 1);
-  Handle copy(
-      H5Dcreate2(file, copy_path.c_str(), H5T_IEEE_F64LE, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
-  if (!copy.valid() ||
-      H5Dwrite(copy.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, positions_m.data()) < 0) {
-    return h5_error("writing " + copy_path, path_);
+  if (box.has_edges) {
+    // One edges record per position frame: readers (MDAnalysis) take frame
+    // k's box from record k. The D x D matrix form (edge vectors as rows,
+    // here diagonal): H5MD allows it for any box, and MDAnalysis 2.4 reads
+    // only that form.
+    auto edges = element_for(file, impl_->elements, particles + "/box/edges", {3, 3}, impl_->creator, "m");
+    if (!edges.ok()) return edges.status();
+    const double matrix[9] = {box.edges_m[0], 0.0, 0.0, 0.0, box.edges_m[1], 0.0, 0.0, 0.0, box.edges_m[2]};
+    if (Status s = append_element(**edges, step, time, matrix); !s.ok()) return s;
   }
-  Handle scalar(H5Screate(H5S_SCALAR));
-  Handle step_attr(H5Acreate2(copy.get(), "step", H5T_STD_I64LE, scalar.get(), H5P_DEFAULT, H5P_DEFAULT));
-  Handle time_attr(H5Acreate2(copy.get(), "time", H5T_IEEE_F64LE, scalar.get(), H5P_DEFAULT, H5P_DEFAULT));
-  if (H5Awrite(step_attr.get(), H5T_NATIVE_INT64, &step) < 0 ||
-      H5Awrite(time_attr.get(), H5T_NATIVE_DOUBLE, &time) < 0) {
-    return h5_error("writing frame attributes", path_);
-  }
-  ++frame;
-  return {};
+  return append_element(**element, step, time, positions_m.data());
 }
 
 Status H5mdWriter::append_observable(std::string_view name, std::int64_t step, double time,
-                                     std::span<const double> values) {
+                                     std::span<const double> values, std::string_view unit) {
   if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
   if (values.empty()) return invalid_argument("observable " + std::string(name) + ": no values");
   std::vector<hsize_t> record_dims;
   if (values.size() > 1) record_dims.push_back(values.size());
   auto element = element_for(impl_->file.get(), impl_->elements, "/observables/" + std::string(name),
-                             std::move(record_dims), impl_->creator.time_unit);
+                             std::move(record_dims), impl_->creator, unit);
   if (!element.ok()) return element.status();
-  if ((*element)->width != values.size()) {
-    return invalid_argument("observable " + std::string(name) + ": width differs from the first record");
+  if ((*element)->width != values.size() || (*element)->value.memory_type != H5T_NATIVE_DOUBLE) {
+    return invalid_argument("observable " + std::string(name) +
+                            ": width or type differs from the first record");
   }
   return append_element(**element, step, time, values.data());
+}
+
+Status H5mdWriter::append_count(std::string_view name, std::int64_t step, double time, std::int64_t value) {
+  if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
+  auto element = element_for(impl_->file.get(), impl_->elements, "/observables/" + std::string(name), {},
+                             impl_->creator, "", H5T_STD_I64LE, H5T_NATIVE_INT64);
+  if (!element.ok()) return element.status();
+  if ((*element)->value.memory_type != H5T_NATIVE_INT64) {
+    return invalid_argument("observable " + std::string(name) + ": not a count");
+  }
+  return append_element(**element, step, time, &value);
 }
 
 Status H5mdWriter::write_parameters_json(std::string_view json) {
@@ -258,9 +315,26 @@ Status H5mdWriter::write_scalar(std::string_view path, double value, std::string
   return {};
 }
 
+Status H5mdWriter::write_integer(std::string_view path, std::int64_t value) {
+  if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
+  const hid_t file = impl_->file.get();
+  const std::string name(path);
+  if (path_exists(file, name)) return {StatusCode::kFailedPrecondition, name + " already written"};
+  Handle space(H5Screate(H5S_SCALAR));
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
+  H5Pset_create_intermediate_group(lcpl.get(), 1);
+  Handle dataset(
+      H5Dcreate2(file, name.c_str(), H5T_STD_I64LE, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
+  if (!dataset.valid() ||
+      H5Dwrite(dataset.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0)
+    return h5_error("writing " + name, path_);
+  return {};
+}
+
 Status H5mdWriter::append_vector_field(std::string_view name, std::int64_t step, double time,
                                        const UniformGrid& grid, std::span<const double> x,
-                                       std::span<const double> y, std::span<const double> z) {
+                                       std::span<const double> y, std::span<const double> z,
+                                       std::string_view unit) {
   if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
   const std::size_t nodes = static_cast<std::size_t>(std::max(grid.nx, 0)) * std::max(grid.ny, 0) *
                             static_cast<std::size_t>(std::max(grid.nz, 0));
@@ -269,16 +343,30 @@ Status H5mdWriter::append_vector_field(std::string_view name, std::int64_t step,
   }
   const hid_t file = impl_->file.get();
   const std::string base = "/fields/" + std::string(name);
+  const hsize_t nz = static_cast<hsize_t>(grid.nz), ny = static_cast<hsize_t>(grid.ny),
+                nx = static_cast<hsize_t>(grid.nx);
   auto found = impl_->fields.find(base);
   if (found == impl_->fields.end()) {
     Impl::Field field;
-    auto step_series = create_series(file, base + "/step", H5T_STD_I64LE, H5T_NATIVE_INT64, {});
-    if (!step_series.ok()) return step_series.status();
-    auto time_series = create_series(file, base + "/time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {});
-    if (!time_series.ok()) return time_series.status();
-    if (Status s = write_string_attribute(time_series->dataset.get(), "unit", impl_->creator.time_unit);
-        !s.ok())
+    if (Status s = create_step_and_time(file, base, impl_->creator, field.step, field.time); !s.ok())
       return s;
+    // value [frames][nz][ny][nx][3], chunked by z plane of one frame: each
+    // component is written plane by plane into a chunk that stays cached.
+    hsize_t dims[5] = {0, nz, ny, nx, 3};
+    hsize_t max_dims[5] = {H5S_UNLIMITED, nz, ny, nx, 3};
+    hsize_t chunk[5] = {1, 1, ny, nx, 3};
+    Handle space(H5Screate_simple(5, dims, max_dims));
+    Handle dcpl(H5Pcreate(H5P_DATASET_CREATE));
+    H5Pset_chunk(dcpl.get(), 5, chunk);
+    const std::string value_path = base + "/value";
+    field.value.dataset = Handle(H5Dcreate2(file, value_path.c_str(), H5T_IEEE_F32LE, space.get(),
+                                            H5P_DEFAULT, dcpl.get(), H5P_DEFAULT));
+    if (!field.value.dataset.valid()) return h5_error("creating " + value_path, path_);
+    field.value.record_dims = {nz, ny, nx, 3};
+    field.value.memory_type = H5T_NATIVE_DOUBLE;
+    if (!unit.empty()) {
+      if (Status s = write_string_attribute(field.value.dataset.get(), "unit", unit); !s.ok()) return s;
+    }
     Handle group(H5Gopen2(file, base.c_str(), H5P_DEFAULT));
     const std::array<int, 3> dimensions = {grid.nx, grid.ny, grid.nz};
     if (Status s = write_int_attribute(group.get(), "dimensions", dimensions); !s.ok()) return s;
@@ -293,8 +381,6 @@ Status H5mdWriter::append_vector_field(std::string_view name, std::int64_t step,
         H5Awrite(origin.get(), H5T_NATIVE_DOUBLE, grid.origin_m) < 0) {
       return h5_error("writing grid of " + base, path_);
     }
-    field.step = std::move(*step_series);
-    field.time = std::move(*time_series);
     field.grid = grid;
     found = impl_->fields.emplace(base, std::move(field)).first;
   }
@@ -302,36 +388,30 @@ Status H5mdWriter::append_vector_field(std::string_view name, std::int64_t step,
   if (field.grid.nx != grid.nx || field.grid.ny != grid.ny || field.grid.nz != grid.nz) {
     return invalid_argument("field " + std::string(name) + ": grid differs from the first frame");
   }
-  char frame_name[32];
-  std::snprintf(frame_name, sizeof frame_name, "/frame_%06d", static_cast<int>(field.step.records));
-  const std::string frame_path = base + frame_name;
-  hsize_t dims[4] = {static_cast<hsize_t>(grid.nz), static_cast<hsize_t>(grid.ny),
-                     static_cast<hsize_t>(grid.nx), 3};
-  Handle space(H5Screate_simple(4, dims, nullptr));
-  Handle frame(H5Dcreate2(file, frame_path.c_str(), H5T_IEEE_F32LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
-                          H5P_DEFAULT));
-  if (!frame.valid()) return h5_error("creating " + frame_path, path_);
-  // Each component array goes to every third value: no interleaved copy of the field.
+  const hsize_t record = field.value.records;
+  hsize_t extent[5] = {record + 1, nz, ny, nx, 3};
+  if (H5Dset_extent(field.value.dataset.get(), extent) < 0) return h5_error("extending " + base, path_);
+  // Each component array goes to every third value, one z plane at a time:
+  // no interleaved copy of the field.
   const std::span<const double> components[3] = {x, y, z};
-  hsize_t count[4] = {dims[0], dims[1], dims[2], 1};
+  Handle file_space(H5Dget_space(field.value.dataset.get()));
   hsize_t memory_dims[1] = {nodes};
   Handle memory_space(H5Screate_simple(1, memory_dims, nullptr));
-  for (hsize_t c = 0; c < 3; ++c) {
-    hsize_t start[4] = {0, 0, 0, c};
-    Handle file_space(H5Dget_space(frame.get()));
-    H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
-    if (H5Dwrite(frame.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
-                 components[c].data()) < 0) {
-      return h5_error("writing " + frame_path, path_);
+  const hsize_t plane = ny * nx;
+  for (hsize_t k = 0; k < nz; ++k) {
+    for (hsize_t c = 0; c < 3; ++c) {
+      hsize_t start[5] = {record, k, 0, 0, c};
+      hsize_t count[5] = {1, 1, ny, nx, 1};
+      H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
+      hsize_t memory_start[1] = {k * plane}, memory_count[1] = {plane};
+      H5Sselect_hyperslab(memory_space.get(), H5S_SELECT_SET, memory_start, nullptr, memory_count, nullptr);
+      if (H5Dwrite(field.value.dataset.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(),
+                   H5P_DEFAULT, components[c].data()) < 0) {
+        return h5_error("writing " + base + "/value", path_);
+      }
     }
   }
-  Handle scalar(H5Screate(H5S_SCALAR));
-  Handle step_attr(H5Acreate2(frame.get(), "step", H5T_STD_I64LE, scalar.get(), H5P_DEFAULT, H5P_DEFAULT));
-  Handle time_attr(H5Acreate2(frame.get(), "time", H5T_IEEE_F64LE, scalar.get(), H5P_DEFAULT, H5P_DEFAULT));
-  if (H5Awrite(step_attr.get(), H5T_NATIVE_INT64, &step) < 0 ||
-      H5Awrite(time_attr.get(), H5T_NATIVE_DOUBLE, &time) < 0) {
-    return h5_error("writing frame attributes", path_);
-  }
+  field.value.records = record + 1;
   if (Status s = append_record(field.step, &step); !s.ok()) return s;
   return append_record(field.time, &time);
 }

@@ -1,9 +1,10 @@
-// XDMF 2 sidecar of an H5MD result, so ParaView ("XDMF Reader", the legacy
-// reader) opens the cell meshes as a time series, and beside them the vector
-// fields of /fields (the fluid velocity of a shear-flow job) on their uniform
-// grids. It references only whole datasets (no HyperSlab): the tetrahedra in
-// /connectivity/<group>, one 2-D copy of each position frame in
-// /xdmf/<group>/frame_<k>, and each field frame /fields/<name>/frame_<k>.
+// XDMF 2 sidecar of an H5MD result, so ParaView (the default XDMF3 reader and
+// the legacy "XDMF Reader") opens the cell mesh as a time series, and beside
+// it the vector fields of /fields (the fluid velocity of a shear-flow job) on
+// their uniform grids: one temporal collection of spatial collections, each
+// grid a block named after the particle group or field. It stores no data of
+// its own: the tetrahedra are /connectivity/<group>, each frame a HyperSlab
+// of /particles/<group>/position/value or /fields/<name>/value.
 #pragma once
 
 #include <string>
@@ -20,7 +21,8 @@ namespace cellflow::io {
 StatusOr<std::string> xdmf_for(const std::string& h5_path, std::string_view group,
                                const std::string& h5_reference);
 
-// Writes xdmf_for(h5_path, group, basename(h5_path)) to `xdmf_path`.
+// Writes xdmf_for(h5_path, group, "./" + basename(h5_path)) to `xdmf_path`
+// (which belongs beside the HDF5 file).
 Status write_xdmf(const std::string& h5_path, const std::string& xdmf_path, std::string_view group = "cell");
 
 }  // namespace cellflow::io

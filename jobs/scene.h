@@ -49,7 +49,10 @@ struct RunOptions {
                              // (a flow job writes every snapshot of numerics.snapshot_every_strain)
   int threads = 0;           // OpenMP threads for the physics; 0: the spec's / default
   int debug_delay_per_point_ms = 0;  // testing aid: a cancellable pause after each load point (quasi-static)
-  std::string program_version = "0.1.0";
+  // /h5md/creator version; empty: this build's, "<version> (git <commit>)".
+  std::string program_version;
+  // /h5md/author name when the spec names none (cellflow-run: $USER); empty: "unknown".
+  std::string default_author;
   // fit: the curve library's cache directory; empty: jobs::default_library_dir()
   // ($CELLFLOW_LIBRARY_DIR, $XDG_CACHE_HOME/cellflow/curves, ~/.cache/cellflow/curves).
   std::string library_dir;

@@ -93,7 +93,8 @@ grpc::Status CellflowServiceImpl::DownloadResult(grpc::ServerContext* context,
   CELLFLOW_AUTHORIZE(context, caller)
   return to_grpc(jobs_.download(
       request->job_id(),
-      [&](const v1::ResultChunk& chunk) { return !context->IsCancelled() && writer->Write(chunk); }, caller));
+      [&](const v1::ResultChunk& chunk) { return !context->IsCancelled() && writer->Write(chunk); }, caller,
+      request->part()));
 }
 
 grpc::Status CellflowServiceImpl::UploadMesh(grpc::ServerContext* context,
@@ -159,7 +160,7 @@ grpc::Status WorkerServiceImpl::UploadResult(grpc::ServerContext* context,
   CELLFLOW_AUTHORIZE(context, caller)
   v1::UploadChunk chunk;
   if (!reader->Read(&chunk)) return {grpc::StatusCode::INVALID_ARGUMENT, "upload without chunks"};
-  auto upload = jobs_.begin_upload(chunk.lease());
+  auto upload = jobs_.begin_upload(chunk.lease(), chunk.part());
   if (!upload.ok()) return to_grpc(upload.status());
   do {
     if (context->IsCancelled()) return {grpc::StatusCode::CANCELLED, "the worker went away"};

@@ -191,16 +191,24 @@ JobService::JobService(Store& store, Notifier& notifier, JobServiceOptions optio
   fs::create_directories(options_.data_dir / "checkpoints", error);
 }
 
-fs::path JobService::result_path(std::int64_t job_id) const {
-  return options_.data_dir / "results" / (job_name(job_id) + ".h5");
+namespace {
+
+const char* part_extension(v1::ResultPart part) {
+  return part == v1::RESULT_PART_XDMF ? ".xdmf" : ".h5";
 }
 
-fs::path JobService::upload_path(const v1::Lease& lease) const {
+}  // namespace
+
+fs::path JobService::result_path(std::int64_t job_id, v1::ResultPart part) const {
+  return options_.data_dir / "results" / (job_name(job_id) + part_extension(part));
+}
+
+fs::path JobService::upload_path(const v1::Lease& lease, v1::ResultPart part) const {
   auto id = parse_job_name(lease.job_id());
   // The token keeps two attempts (or a stale worker) from sharing a file.
   return options_.data_dir / "results" /
          (job_name(id.value_or(0)) + ".attempt-" + std::to_string(lease.attempt()) + "." +
-          lease.lease_token().substr(0, 32) + ".h5.part");
+          lease.lease_token().substr(0, 32) + part_extension(part) + ".part");
 }
 
 void JobService::published(const v1::Job& job) {
@@ -227,6 +235,10 @@ Status JobService::check_visible(std::int64_t id, const Identity& caller) {
 StatusOr<std::unique_ptr<jobs::PreparedJob>> JobService::prepare_submitted(const v1::JobSpec& spec) {
   if (spec.name().size() > options_.max_name_bytes) {
     return invalid_argument("name: " + std::to_string(spec.name().size()) + " bytes; at most " +
+                            std::to_string(options_.max_name_bytes));
+  }
+  if (spec.author().size() > options_.max_name_bytes) {
+    return invalid_argument("author: " + std::to_string(spec.author().size()) + " bytes; at most " +
                             std::to_string(options_.max_name_bytes));
   }
   v1::JobSpec resolved = spec;
@@ -325,6 +337,7 @@ Status JobService::delete_job(const std::string& job_id, const Identity& caller)
   for (std::int64_t removed : children) {
     std::error_code error;
     fs::remove(result_path(removed), error);
+    fs::remove(result_path(removed, v1::RESULT_PART_XDMF), error);
     remove_uploads(removed);
     remove_checkpoint(removed);
     std::lock_guard lock(sample_bounds_mutex_);
@@ -382,7 +395,10 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
             std::to_string(options_.memory_limit_bytes >> 20) +
             " MiB (--memory-limit-bytes); lower cell.target_vertex_count or the lattice resolution");
   }
-  auto submitted = store_.submit(request.spec(), request.request_id(), memory, now(), caller.user);
+  // The result names an author: the client's, else the submitting user.
+  v1::JobSpec spec = request.spec();
+  if (spec.author().empty()) spec.set_author(caller.user);
+  auto submitted = store_.submit(spec, request.request_id(), memory, now(), caller.user);
   if (!submitted.ok()) return submitted.status();
   if (!submitted->existed) {
     if (auto id = parse_job_name(submitted->job.id())) {
@@ -561,13 +577,15 @@ Status JobService::watch(const v1::WatchJobRequest& request,
 }
 
 Status JobService::download(const std::string& job_id,
-                            const std::function<bool(const v1::ResultChunk&)>& send, const Identity& caller) {
+                            const std::function<bool(const v1::ResultChunk&)>& send, const Identity& caller,
+                            v1::ResultPart part) {
   auto id = parse_id(job_id, "job_id");
   if (!id.ok()) return id.status();
+  if (part != v1::RESULT_PART_HDF5 && part != v1::RESULT_PART_XDMF) return invalid_argument("part: unknown");
   if (Status s = check_visible(*id, caller); !s.ok()) return s;
   auto job = store_.get(*id);
   if (!job.ok()) return job.status();
-  const fs::path path = result_path(*id);
+  const fs::path path = result_path(*id, part);
   std::ifstream in(path, std::ios::binary);
   if (!in && job->child_count() > 0) {
     return {StatusCode::kNotFound, job->id() + " is a study: each of its " +
@@ -576,8 +594,9 @@ Status JobService::download(const std::string& job_id,
                                        "; cellflow plot " + job->id() + ")"};
   }
   if (!in) {
-    return {StatusCode::kNotFound,
-            job->id() + " has no result file (state " + v1::Job::State_Name(job->state()) + ")"};
+    return {StatusCode::kNotFound, job->id() + " has no result " +
+                                       (part == v1::RESULT_PART_XDMF ? "XDMF sidecar" : "file") + " (state " +
+                                       v1::Job::State_Name(job->state()) + ")"};
   }
   std::error_code error;
   const auto total = static_cast<std::int64_t>(fs::file_size(path, error));
@@ -591,7 +610,7 @@ Status JobService::download(const std::string& job_id,
     chunk.set_offset(offset);
     chunk.set_data(buffer.data(), static_cast<std::size_t>(n));
     chunk.set_total_size_bytes(total);
-    if (first) chunk.set_file_name(job->id() + ".h5");
+    if (first) chunk.set_file_name(job->id() + part_extension(part));
     first = false;
     if (!send(chunk)) return {StatusCode::kCancelled, "the client went away"};
     offset += n;
@@ -745,7 +764,9 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
   return ack;
 }
 
-StatusOr<std::unique_ptr<ResultUpload>> JobService::begin_upload(const v1::Lease& lease) {
+StatusOr<std::unique_ptr<ResultUpload>> JobService::begin_upload(const v1::Lease& lease,
+                                                                 v1::ResultPart part) {
+  if (part != v1::RESULT_PART_HDF5 && part != v1::RESULT_PART_XDMF) return invalid_argument("part: unknown");
   auto id = parse_id(lease.job_id(), "lease.job_id");
   if (!id.ok()) return id.status();
   auto check = store_.check_lease(*id, lease.lease_token());
@@ -755,9 +776,12 @@ StatusOr<std::unique_ptr<ResultUpload>> JobService::begin_upload(const v1::Lease
   auto job = store_.get(*id);
   if (!job.ok()) return job.status();
   // A result holds part of what the run keeps in memory: the job's own estimate bounds it.
-  const double limit = options_.upload_memory_factor * static_cast<double>(job->estimated_memory_bytes()) +
-                       static_cast<double>(options_.upload_slack_bytes);
-  const fs::path path = upload_path(lease);
+  const double limit =
+      part == v1::RESULT_PART_XDMF
+          ? static_cast<double>(kMaxXdmfBytes)
+          : options_.upload_memory_factor * static_cast<double>(job->estimated_memory_bytes()) +
+                static_cast<double>(options_.upload_slack_bytes);
+  const fs::path path = upload_path(lease, part);
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return Status(StatusCode::kInternal, "cannot create the upload file");
   return std::make_unique<ResultUpload>(path, fd, static_cast<std::int64_t>(std::min(limit, 9e18)));
@@ -770,6 +794,14 @@ StatusOr<std::int64_t> JobService::adopt_upload(const v1::Lease& lease, std::int
   const auto size = static_cast<std::int64_t>(fs::file_size(from, error));
   fs::rename(from, result_path(job_id), error);
   if (error) return Status(StatusCode::kInternal, "cannot move the result into place: " + error.message());
+  // The sidecar goes with it (none uploaded: none kept from an earlier attempt).
+  const fs::path xdmf = upload_path(lease, v1::RESULT_PART_XDMF);
+  std::error_code ignored;
+  if (fs::exists(xdmf, ignored)) {
+    fs::rename(xdmf, result_path(job_id, v1::RESULT_PART_XDMF), ignored);
+  } else {
+    fs::remove(result_path(job_id, v1::RESULT_PART_XDMF), ignored);
+  }
   if (Status s = sync_directory(result_path(job_id).parent_path()); !s.ok()) return s;
   return size;
 }
@@ -835,6 +867,7 @@ StatusOr<v1::FinishJobResponse> JobService::release(const v1::ReleaseJobRequest&
   if (!job.ok()) return job.status();
   std::error_code error;
   fs::remove(upload_path(request.lease()), error);
+  fs::remove(upload_path(request.lease(), v1::RESULT_PART_XDMF), error);
   published(*job);
   notifier_.queue_changed();
   spdlog::info("{} handed back: {}", job->id(), reason);

@@ -96,8 +96,9 @@ class JobService {
   // `client_gone` returns true (kCancelled), or the service shuts down.
   Status watch(const v1::WatchJobRequest& request, const std::function<bool(const v1::JobEvent&)>& send,
                const std::function<bool()>& client_gone, const Identity& caller = Identity::local());
+  // Sends `part` of the job's result: the HDF5 file or its XDMF sidecar.
   Status download(const std::string& job_id, const std::function<bool(const v1::ResultChunk&)>& send,
-                  const Identity& caller = Identity::local());
+                  const Identity& caller = Identity::local(), v1::ResultPart part = v1::RESULT_PART_HDF5);
   // A whole mesh upload (the handler collects the chunks up to max_mesh_bytes).
   StatusOr<v1::MeshRef> upload_mesh(const std::string& bytes, const std::string& name);
   Status delete_job(const std::string& job_id, const Identity& caller = Identity::local());
@@ -106,7 +107,11 @@ class JobService {
   StatusOr<v1::LeaseJobResponse> lease(const v1::LeaseJobRequest& request,
                                        const std::function<bool()>& client_gone);
   StatusOr<v1::ReportAck> report(const v1::WorkerReport& report);
-  StatusOr<std::unique_ptr<ResultUpload>> begin_upload(const v1::Lease& lease);
+  // An upload of `part` of the attempt's result; the XDMF sidecar is at most
+  // kMaxXdmfBytes and becomes the job's with the HDF5 file (finish, fail).
+  StatusOr<std::unique_ptr<ResultUpload>> begin_upload(const v1::Lease& lease,
+                                                       v1::ResultPart part = v1::RESULT_PART_HDF5);
+  static constexpr std::int64_t kMaxXdmfBytes = 16LL << 20;
   StatusOr<v1::FinishJobResponse> finish(const v1::FinishJobRequest& request);
   StatusOr<v1::FinishJobResponse> fail(const v1::FailJobRequest& request);
   StatusOr<v1::FinishJobResponse> release(const v1::ReleaseJobRequest& request);
@@ -141,7 +146,7 @@ class JobService {
   int remove_all_uploads();
   const MeshStore& meshes() const { return meshes_; }
 
-  std::filesystem::path result_path(std::int64_t job_id) const;
+  std::filesystem::path result_path(std::int64_t job_id, v1::ResultPart part = v1::RESULT_PART_HDF5) const;
   const JobServiceOptions& options() const { return options_; }
   // Spec conversions made at submit so far (one per submitted spec).
   std::int64_t spec_conversions() const { return registry_.conversions(); }
@@ -152,7 +157,7 @@ class JobService {
   // child, then queues the study and its children in one transaction.
   StatusOr<v1::SubmitJobResponse> submit_study(const v1::SubmitJobRequest& request, const Identity& caller);
   std::int64_t ttl_ms() const { return static_cast<std::int64_t>(options_.lease_ttl_s * 1000.0); }
-  std::filesystem::path upload_path(const v1::Lease& lease) const;
+  std::filesystem::path upload_path(const v1::Lease& lease, v1::ResultPart part = v1::RESULT_PART_HDF5) const;
   // Moves the attempt's upload (if any) into place as the job's result.
   StatusOr<std::int64_t> adopt_upload(const v1::Lease& lease, std::int64_t job_id);
   void published(const v1::Job& job);

@@ -1,4 +1,4 @@
-// cellflow-run SPEC.json [-o curve.csv] [--quiet] [--threads N]: runs a job
+// cellflow-run SPEC.json [-o curve.csv | -r result.h5] [--quiet] [--threads N]: runs a job
 // spec locally and writes its force-deformation curve (quasi-static) or its
 // deformation time series (shear flow) as CSV.
 #include <CLI/CLI.hpp>
@@ -14,11 +14,15 @@ int main(int argc, char** argv) {
       "Run a cellflow job spec (protobuf JSON mapping) locally; the force curve (compression,\n"
       "indentation) or the deformation time series D(t) (shear flow) goes to CSV.\n"
       "Exit codes: 0 done, 1 usage, 2 invalid spec, 3 numerical failure (rows so far written)."};
-  std::string spec_path, output_path;
+  std::string spec_path, output_path, result_path;
   bool quiet = false;
   int threads = 0;
   app.add_option("spec", spec_path, "job spec JSON, e.g. examples/compression.json")->required();
   app.add_option("-o,--output", output_path, "curve CSV file (default: stdout)");
+  app.add_option("-r,--result", result_path,
+                 "write the result file (H5MD, as a worker does) and its XDMF sidecar beside it "
+                 "(FILE.xdmf) instead of the CSV")
+      ->excludes("--output");
   app.add_flag("-q,--quiet", quiet, "no progress lines on stderr");
   app.add_option("-j,--threads", threads, "OpenMP threads of the solve (default: the OpenMP default)")
       ->check(CLI::NonNegativeNumber);
@@ -27,6 +31,12 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? 0 : cellflow::tools::kExitUsage;
+  }
+  if (!result_path.empty()) {
+    const cellflow::tools::RunOutcome outcome = cellflow::tools::run_spec_file_to_result(
+        spec_path, result_path, quiet ? nullptr : &std::cerr, threads);
+    if (!outcome.status.ok()) std::cerr << "cellflow-run: " << outcome.status.to_string() << '\n';
+    return outcome.exit_code;
   }
   std::ofstream file;
   if (!output_path.empty()) {

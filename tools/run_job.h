@@ -30,6 +30,11 @@ struct RunOutcome {
 // OpenMP thread count of the solve (0: the OpenMP default).
 RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::ostream* progress,
                          int threads = 0);
+// Reads the spec at spec_path and runs it as a worker does: the result file
+// (H5MD) at h5_path, author $USER unless the spec names one, and its XDMF
+// sidecar beside it (h5_path with the extension .xdmf) for ParaView.
+RunOutcome run_spec_file_to_result(const std::string& spec_path, const std::string& h5_path,
+                                   std::ostream* progress, int threads = 0);
 
 // Validates and runs `spec`; writes the CSV header and one row per converged
 // point (flow: per sample) to `csv` as the run goes (so a failed run keeps its

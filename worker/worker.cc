@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "io/xdmf.h"
 #include "rpc/rpc.h"
 #include "worker/checkpoints.h"
 #include "worker/job_runner.h"
@@ -280,6 +281,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   const std::string stem = job + ".attempt-" + std::to_string(lease.attempt());
   const fs::path temporary = fs::path(options_.scratch_dir) / (stem + ".h5.tmp");
   const fs::path result = fs::path(options_.scratch_dir) / (stem + ".h5");
+  const fs::path sidecar = fs::path(options_.scratch_dir) / (stem + ".xdmf");
   RunOptions run_options;
   run_options.result_path = temporary.string();
   run_options.threads = options_.threads;
@@ -346,6 +348,7 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     fs::remove(resume, ignored);
     fs::remove(temporary, ignored);
     if (!options_.keep_results) fs::remove(result, ignored);
+    if (!options_.keep_results) fs::remove(sidecar, ignored);
   };
   if (reporter.cancelled()) {
     spdlog::info("{}: cancelled; stopped after {} sample(s)", job, outcome.samples);
@@ -366,6 +369,16 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   // Upload the result (also the partial one of a failed run), then end the attempt.
   const bool have_file = outcome.result_written || (!outcome.status.ok() && fs::exists(temporary, ignored));
   if (have_file) fs::rename(temporary, result, ignored);
+  // The XDMF sidecar for ParaView, naming the file as the server serves it
+  // (job-<n>.h5); a result without cell frames or fields has none.
+  bool have_sidecar = false;
+  if (have_file) {
+    if (auto xml = io::xdmf_for(result.string(), "cell", "./" + job + ".h5"); xml.ok()) {
+      std::ofstream out(sidecar, std::ios::binary | std::ios::trunc);
+      out << *xml;
+      have_sidecar = static_cast<bool>(out);
+    }
+  }
   // The upload and the terminal calls are tried again while the server is
   // UNAVAILABLE, for at most the lease time (waits of 0.1, 0.2, ... 2 s).
   rpc::RetryOptions retry;
@@ -378,8 +391,9 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   rpc::RetryOptions end_retry = retry;
   end_retry.deadline = 30s;
 
-  auto upload = [&](grpc::ClientContext& context) -> grpc::Status {
-    std::ifstream in(result, std::ios::binary);
+  auto upload_part = [&](grpc::ClientContext& context, const fs::path& path,
+                         v1::ResultPart part) -> grpc::Status {
+    std::ifstream in(path, std::ios::binary);
     if (!in) return {grpc::StatusCode::NOT_FOUND, "no result file"};
     v1::UploadResultResponse response;
     auto writer = stub_->UploadResult(&context, &response);
@@ -391,7 +405,10 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
       const std::streamsize n = in.gcount();
       if (n == 0 && !first) break;
       v1::UploadChunk chunk;
-      if (first) *chunk.mutable_lease() = lease;
+      if (first) {
+        *chunk.mutable_lease() = lease;
+        chunk.set_part(part);
+      }
       first = false;
       chunk.set_offset(offset);
       chunk.set_data(buffer.data(), static_cast<std::size_t>(n));
@@ -401,7 +418,19 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     writer->WritesDone();
     return writer->Finish();
   };
-  auto upload_with_retry = [&] { return rpc::call_with_retry(upload_retry, upload); };
+  // The sidecar first: the HDF5 upload is what FinishJob waits for, and the
+  // server adopts the sidecar with it. A lost sidecar only costs the download.
+  auto upload_with_retry = [&] {
+    if (have_sidecar) {
+      const grpc::Status sent = rpc::call_with_retry(upload_retry, [&](grpc::ClientContext& context) {
+        return upload_part(context, sidecar, v1::RESULT_PART_XDMF);
+      });
+      if (!sent.ok()) spdlog::warn("{}: XDMF sidecar upload failed: {}", job, sent.error_message());
+    }
+    return rpc::call_with_retry(upload_retry, [&](grpc::ClientContext& context) {
+      return upload_part(context, result, v1::RESULT_PART_HDF5);
+    });
+  };
   auto finish = [&](const v1::FinishJobRequest& request) {
     return rpc::call_with_retry(end_retry, [&](grpc::ClientContext& context) {
       v1::FinishJobResponse response;

@@ -9,9 +9,18 @@
 
 namespace cellflow::jobs {
 
+const char* creator_version() {
+  return CELLFLOW_PROJECT_VERSION " (git " CELLFLOW_GIT_COMMIT ")";
+}
+
 StatusOr<std::unique_ptr<io::H5mdWriter>> open_result(const v1::JobSpec& spec, const RunOptions& options,
                                                       const io::H5mdCreator& creator) {
-  auto writer = io::H5mdWriter::create(options.result_path, creator);
+  io::H5mdCreator named = creator;
+  named.program_version = options.program_version.empty() ? creator_version() : options.program_version;
+  named.author = !spec.author().empty()            ? spec.author()
+                 : !options.default_author.empty() ? options.default_author
+                                                   : "unknown";
+  auto writer = io::H5mdWriter::create(options.result_path, named);
   if (!writer.ok()) return writer.status();
   if (Status s = (*writer)->write_parameters_json(job_spec_to_json(spec)); !s.ok()) return s;
   return writer;

@@ -17,7 +17,12 @@
 
 namespace cellflow::jobs {
 
-// A result file named by `options`, with the job spec as /parameters.
+// This build's version and commit, "0.1.0 (git abc1234)".
+const char* creator_version();
+
+// A result file named by `options`, with the job spec as /parameters; the
+// author is the spec's (else options.default_author, else "unknown"), the
+// creator version options.program_version (else creator_version()).
 StatusOr<std::unique_ptr<io::H5mdWriter>> open_result(const v1::JobSpec& spec, const RunOptions& options,
                                                       const io::H5mdCreator& creator);
 

@@ -410,8 +410,8 @@ class FitRecorder : public ResultRecorder {
   Status write(const FitPlan& plan, const JobFit& fit) {
     const json doc = fit_document(plan, fit);
     keep(writer_->write_string("/summary/fit_json", doc.dump(2)));
-    keep(writer_->write_scalar("/summary/simulations_run", fit.simulations_run));
-    keep(writer_->write_scalar("/summary/curves", static_cast<double>(plan.curves.size())));
+    keep(writer_->write_integer("/summary/simulations_run", fit.simulations_run));
+    keep(writer_->write_integer("/summary/curves", static_cast<std::int64_t>(plan.curves.size())));
     const cal::ParameterFit* best = fit.result.joint
                                         ? &*fit.result.joint
                                         : (fit.result.per_curve.empty() ? nullptr : &fit.result.per_curve[0]);
@@ -433,17 +433,19 @@ class FitRecorder : public ResultRecorder {
         const std::int64_t step = curve.sample[i];
         const double eps = part.deformation[k];
         const double d = eps * 2.0 * curve.radius_m;
-        auto put = [&](const std::string& name, double value) {
-          keep(writer_->append_observable(prefix + name, step, eps, value));
+        // Units in the H5MD units syntax; the deformation is dimensionless.
+        auto put = [&](const std::string& name, double value, const char* unit) {
+          keep(writer_->append_observable(prefix + name, step, eps, value, unit));
         };
-        put("indentation_m", curve.indentation_m[i] + curve.contact_estimate_m);
-        put("deformation", eps);
-        put("force_n", curve.force_n[i]);
-        put("model_force_n", part.model_force_n[k]);
-        put("hertz_force_n", std::isfinite(hertz_e) ? hertz_force(plan, curve, hertz_e, d) : kNaN);
+        put("indentation_m", curve.indentation_m[i] + curve.contact_estimate_m, "m");
+        put("deformation", eps, "");
+        put("force_n", curve.force_n[i], "N");
+        put("model_force_n", part.model_force_n[k], "N");
+        put("hertz_force_n", std::isfinite(hertz_e) ? hertz_force(plan, curve, hertz_e, d) : kNaN, "N");
         if (fit.result.joint && c < fit.result.per_curve.size()) {
           const cal::CurvePart& j = fit.result.joint->curves[c];
-          put("joint_model_force_n", k < j.points.size() && j.points[k] == i ? j.model_force_n[k] : kNaN);
+          put("joint_model_force_n", k < j.points.size() && j.points[k] == i ? j.model_force_n[k] : kNaN,
+              "N");
         }
       }
       keep(writer_->write_string("/summary/curve_" + std::to_string(c) + "_name", curve.name));
@@ -470,8 +472,11 @@ class FitJob final : public PreparedJob {
   RunOutcome run(const v1::JobSpec& spec, const RunOptions& options, const JobEvents& events) override {
     RunOutcome outcome;
     io::H5mdCreator creator;
-    creator.program_version = options.program_version;
-    creator.time_unit = "1 (deformation of the fitted curve)";
+    // No physical time: "time" is the fitted deformation of the sample, dimensionless.
+    creator.time_unit = "";
+    creator.time_meaning =
+        "not time: the fitted deformation ((indentation - contact offset) / (2 R)) of the sample; "
+        "step is the sample's index in the spec's arrays";
     auto writer = open_result(spec, options, creator);
     if (!writer.ok()) {
       outcome.status = writer.status();

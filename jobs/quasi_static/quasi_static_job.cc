@@ -14,6 +14,11 @@
 namespace cellflow::jobs {
 namespace {
 
+// The "meaning" attribute of every time dataset of a quasi-static result.
+constexpr const char* kQuasiStaticTimeMeaning =
+    "load parameter, not time: the deformation (plate or probe travel / (2 R)) of the load point; "
+    "step k >= 1 is load point k - 1, step 0 the reference state";
+
 scenes::QuasiStaticOptions to_numerics(const v1::QuasiStaticNumerics& n) {
   scenes::QuasiStaticOptions options;  // the struct holds the defaults
   if (n.has_residual_tolerance()) options.residual_tolerance = n.residual_tolerance();
@@ -94,23 +99,27 @@ class QuasiStaticRecorder : public ResultRecorder {
     const std::int64_t step = point.index + 1;
     const double time = point.deformation;
     deformation_[point.index] = point.deformation;
-    auto put = [&](const char* name, double value) {
-      keep(writer_->append_observable(name, step, time, value));
+    // Units in the H5MD units syntax; dimensionless values carry none.
+    auto put = [&](const char* name, double value, const char* unit) {
+      keep(writer_->append_observable(name, step, time, value, unit));
     };
-    put("deformation", point.deformation);
-    put("displacement_m", point.displacement_m);
-    put("force_n", point.force_n);
-    put("hertz_force_n", point.hertz_force_n);
-    put("taylor_deformation", point.taylor_deformation);
-    keep(
-        writer_->append_observable("semi_axes_m", step, time, std::span<const double>(point.semi_axes_m, 3)));
-    put("volume_m3", point.volume_m3);
-    put("elastic_energy_j", point.elastic_energy_j);
-    put("max_penetration_m", point.max_penetration_m);
-    put("newton_iterations", point.newton_iterations);
-    put("cg_iterations", point.cg_iterations);
-    put("step_splits", point.step_splits);
-    put("residual", point.residual);
+    auto count = [&](const char* name, std::int64_t value) {
+      keep(writer_->append_count(name, step, time, value));
+    };
+    put("deformation", point.deformation, "");
+    put("displacement_m", point.displacement_m, "m");
+    put("force_n", point.force_n, "N");
+    put("hertz_force_n", point.hertz_force_n, "N");
+    put("taylor_deformation", point.taylor_deformation, "");
+    keep(writer_->append_observable("semi_axes_m", step, time, std::span<const double>(point.semi_axes_m, 3),
+                                    "m"));
+    put("volume_m3", point.volume_m3, "m+3");
+    put("elastic_energy_j", point.elastic_energy_j, "J");
+    put("max_penetration_m", point.max_penetration_m, "m");
+    count("newton_iterations", point.newton_iterations);
+    count("cg_iterations", point.cg_iterations);
+    count("step_splits", point.step_splits);
+    put("residual", point.residual, "");
     if (last_index_ == point.index && chosen(point.index) && last_written_index_ != point.index) {
       write_frame(point.index);
     }
@@ -173,8 +182,9 @@ class QuasiStaticJob final : public PreparedJob {
     if (options.threads > 0) checked.set_threads(options.threads);
     const Params& params = checked.params();
     io::H5mdCreator creator;
-    creator.program_version = options.program_version;
-    creator.time_unit = "1 (deformation: the load parameter of a quasi-static curve)";
+    // No physical time: "time" is the load parameter, dimensionless.
+    creator.time_unit = "";
+    creator.time_meaning = kQuasiStaticTimeMeaning;
     auto writer = open_result(spec, options, creator);
     if (!writer.ok()) {
       outcome.status = writer.status();

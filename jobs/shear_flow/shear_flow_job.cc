@@ -63,7 +63,7 @@ class FlowRecorder : public ResultRecorder {
       // Lattice node (i, j, k) sits at ((i + 1/2) dx, ...) in box coordinates, as the cell positions.
       for (double& o : grid.origin_m) o = 0.5 * snap.spacing_m;
       keep(writer_->append_vector_field("fluid_velocity", step_of(snap.time_s), snap.time_s, grid,
-                                        snap.ux_m_per_s, snap.uy_m_per_s, snap.uz_m_per_s));
+                                        snap.ux_m_per_s, snap.uy_m_per_s, snap.uz_m_per_s, "m s-1"));
       keep(writer_->flush());
     };
     cb.on_progress = [this](double fraction) {
@@ -82,19 +82,20 @@ class FlowRecorder : public ResultRecorder {
     auto put = [&](const char* name, double value, const char* unit) {
       keep(writer_->write_scalar(std::string("/parameters/setup/") + name, value, unit));
     };
-    put("shear_rate_per_s", setup_.shear_rate_per_s, "1/s");
-    put("capillary_number", setup_.capillary_number, "1");
+    // Units in the H5MD units syntax; dimensionless values carry none.
+    put("shear_rate_per_s", setup_.shear_rate_per_s, "s-1");
+    put("capillary_number", setup_.capillary_number, "");
     put("shear_modulus_pa", setup_.shear_modulus_pa, "Pa");
-    put("reynolds_number_physical", setup_.reynolds_number_physical, "1");
-    put("reynolds_number_simulated", setup_.reynolds_number_simulated, "1");
-    put("simulated_density_kg_m3", setup_.simulated_density_kg_m3, "kg/m^3");
+    put("reynolds_number_physical", setup_.reynolds_number_physical, "");
+    put("reynolds_number_simulated", setup_.reynolds_number_simulated, "");
+    put("simulated_density_kg_m3", setup_.simulated_density_kg_m3, "kg m-3");
     put("lattice_spacing_m", setup_.lattice_spacing_m, "m");
     put("time_step_s", setup_.time_step_s, "s");
-    put("nx", setup_.nx, "1");
-    put("ny", setup_.ny, "1");
-    put("nz", setup_.nz, "1");
-    put("wall_speed_m_per_s", setup_.wall_speed_m_per_s, "m/s");
-    put("mach_number", setup_.mach_number, "1");
+    keep(writer_->write_integer("/parameters/setup/nx", setup_.nx));
+    keep(writer_->write_integer("/parameters/setup/ny", setup_.ny));
+    keep(writer_->write_integer("/parameters/setup/nz", setup_.nz));
+    put("wall_speed_m_per_s", setup_.wall_speed_m_per_s, "m s-1");
+    put("mach_number", setup_.mach_number, "");
     keep(writer_->flush());
   }
 
@@ -106,16 +107,16 @@ class FlowRecorder : public ResultRecorder {
     keep(writer_->write_string("/summary/stop", scenes::stop_name(result.stop)));
     if (!result.status.ok()) keep(writer_->write_string("/summary/status", result.status.to_string()));
     if (!result.samples.empty()) {
-      put("steady_taylor_deformation", result.steady_taylor_deformation, "1");
+      put("steady_taylor_deformation", result.steady_taylor_deformation, "");
       put("steady_inclination_rad", result.steady_inclination_deg * std::numbers::pi / 180.0, "rad");
-      put("steady_net_strain", result.steady_net_strain, "1");
-      put("tank_treading_frequency_per_s", result.tank_treading_frequency_per_s, "1/s");
-      put("steady_relative_change", result.steady_relative_change, "1");
-      put("reference_taylor_deformation", result.reference_taylor_deformation, "1");
-      put("stiffness_ratio", result.stiffness_ratio, "1");
-      put("mesh_spacing_over_dx", result.mesh_spacing_over_dx, "1");
-      put("thickness_over_kernel", result.thickness_over_kernel, "1");
-      put("time_steps", static_cast<double>(result.time_steps), "1");
+      put("steady_net_strain", result.steady_net_strain, "");
+      put("tank_treading_frequency_per_s", result.tank_treading_frequency_per_s, "s-1");
+      put("steady_relative_change", result.steady_relative_change, "");
+      put("reference_taylor_deformation", result.reference_taylor_deformation, "");
+      put("stiffness_ratio", result.stiffness_ratio, "");
+      put("mesh_spacing_over_dx", result.mesh_spacing_over_dx, "");
+      put("thickness_over_kernel", result.thickness_over_kernel, "");
+      keep(writer_->write_integer("/summary/time_steps", result.time_steps));
       put("wall_time_s", result.wall_time_s, "s");
     }
     std::string warnings;
@@ -134,6 +135,13 @@ class FlowRecorder : public ResultRecorder {
 
   void on_mesh(const mesh::TetMesh& mesh) {
     write_connectivity(mesh);
+    // The flow box: periodic in x (the flow direction) and z, walls at y = 0
+    // and y = H (paper section 7.1); edges n dx per axis (setup.box_m).
+    io::H5mdBox box;
+    box.periodic[0] = box.periodic[2] = true;
+    box.has_edges = true;
+    for (int d = 0; d < 3; ++d) box.edges_m[d] = setup_.box_m[d];
+    keep(writer_->set_box("cell", box));
     keep(writer_->flush());
   }
 
@@ -141,18 +149,18 @@ class FlowRecorder : public ResultRecorder {
     const std::int64_t step = s.time_step;
     const double time = s.time_s;
     const double inclination_rad = s.inclination_deg * std::numbers::pi / 180.0;
-    auto put = [&](const char* name, double value) {
-      keep(writer_->append_observable(name, step, time, value));
+    auto put = [&](const char* name, double value, const char* unit) {
+      keep(writer_->append_observable(name, step, time, value, unit));
     };
-    put("strain", s.strain_units);
-    put("taylor_deformation", s.taylor_deformation);
-    put("inclination_rad", inclination_rad);
-    put("net_strain", s.net_strain);
-    keep(writer_->append_observable("semi_axes_m", step, time, std::span<const double>(s.semi_axes_m)));
-    keep(writer_->append_observable("centroid_m", step, time, std::span<const double>(s.centroid_m)));
-    put("tank_treading_frequency_per_s", s.tank_treading_frequency_per_s);
-    put("volume_m3", s.volume_m3);
-    put("elastic_energy_j", s.elastic_energy_j);
+    put("strain", s.strain_units, "");
+    put("taylor_deformation", s.taylor_deformation, "");
+    put("inclination_rad", inclination_rad, "rad");
+    put("net_strain", s.net_strain, "");
+    keep(writer_->append_observable("semi_axes_m", step, time, std::span<const double>(s.semi_axes_m), "m"));
+    keep(writer_->append_observable("centroid_m", step, time, std::span<const double>(s.centroid_m), "m"));
+    put("tank_treading_frequency_per_s", s.tank_treading_frequency_per_s, "s-1");
+    put("volume_m3", s.volume_m3, "m+3");
+    put("elastic_energy_j", s.elastic_energy_j, "J");
     keep(writer_->flush());  // a killed job leaves every reported sample readable
     ++samples_;
     last_strain_ = s.strain_units;
@@ -211,8 +219,7 @@ class ShearFlowJob final : public PreparedJob {
     RunOutcome outcome;
     scenes::PlannedShearFlow planned = planned_;
     if (options.threads > 0) planned.set_threads(options.threads);
-    io::H5mdCreator creator;
-    creator.program_version = options.program_version;
+    io::H5mdCreator creator;  // time in s
     auto writer = open_result(spec, options, creator);
     if (!writer.ok()) {
       outcome.status = writer.status();

@@ -1,7 +1,9 @@
 // The result files match the schemas written down beside each scene
-// (jobs/<scene>/result_schema.json): every listed entry exists with its kind,
-// element type and shape, named dimensions agree across entries, and every
-// observable the file holds is listed (the schema is complete).
+// (jobs/<scene>/result_schema.json): every listed entry exists (an optional
+// one: when present) with its kind, element type, shape and unit attribute
+// (the schema's "unit"; null: none, dimensionless), named dimensions agree
+// across entries, and every observable the file holds is listed (the schema
+// is complete).
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <unistd.h>
@@ -53,6 +55,19 @@ std::vector<hsize_t> shape_of(hid_t dataset) {
   return dims;
 }
 
+// The unit attribute of `dataset`; "" when it has none.
+std::string unit_of(hid_t dataset) {
+  if (H5Aexists(dataset, "unit") <= 0) return "";
+  const hid_t attr = H5Aopen(dataset, "unit", H5P_DEFAULT);
+  const hid_t type = H5Aget_type(attr);
+  std::string value(H5Tget_size(type), '\0');
+  H5Aread(attr, type, value.data());
+  H5Tclose(type);
+  H5Aclose(attr);
+  value.resize(value.find('\0') == std::string::npos ? value.size() : value.find('\0'));
+  return value;
+}
+
 bool exists(hid_t file, const std::string& path) {
   // Each prefix must exist before the next is asked for.
   std::size_t pos = 0;
@@ -73,6 +88,7 @@ void check_against_schema(const std::string& h5_path, const json& schema) {
     SCOPED_TRACE(path);
     if (path.rfind("/observables/", 0) == 0)
       listed_observables.push_back(path.substr(13, path.find('/', 13) - 13));
+    if (entry.value("optional", false) && !exists(file, path)) continue;
     ASSERT_TRUE(exists(file, path)) << "missing in " << h5_path;
     if (kind == "group") {
       const hid_t group = H5Gopen2(file, path.c_str(), H5P_DEFAULT);
@@ -86,6 +102,10 @@ void check_against_schema(const std::string& h5_path, const json& schema) {
     ASSERT_GE(dataset, 0) << "not a dataset";
     for (const std::string attribute : entry.value("attributes", json::array()))
       EXPECT_GT(H5Aexists(dataset, attribute.c_str()), 0) << "attribute " << attribute;
+    if (entry.contains("unit")) {
+      const std::string expected = entry["unit"].is_null() ? "" : entry["unit"].get<std::string>();
+      EXPECT_EQ(unit_of(dataset), expected) << "unit attribute";
+    }
     const std::vector<hsize_t> shape = shape_of(dataset);
     if (kind == "string") {
       EXPECT_EQ(type_name(dataset), "string");
@@ -177,7 +197,11 @@ TEST(ResultSchema, ShearFlowFileMatchesItsSchema) {
   n->set_box_y_radii(6);
   n->set_box_z_radii(4);
   n->set_max_strain(1.0);
+  n->set_fluid_snapshots(true);  // the optional /fields entries are checked too
   const std::string path = run_to_file(spec, "shear_flow");
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  EXPECT_GT(H5Lexists(file, "/fields", H5P_DEFAULT), 0);
+  H5Fclose(file);
   check_against_schema(path, schema);
   fs::remove(path);
 }

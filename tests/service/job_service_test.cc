@@ -134,6 +134,30 @@ TEST_F(JobServiceTest, SubmitValidatesAndEstimatesMemory) {
   EXPECT_EQ(store_->count(v1::Job::QUEUED), 1);
 }
 
+// The result's author (/h5md/author): the spec's when it names one, else the
+// submitting user; an oversized one is refused naming the field.
+TEST_F(JobServiceTest, SubmitFillsInTheAuthorFromTheCaller) {
+  const Identity alice{"alice", false, false};
+  v1::SubmitJobRequest unnamed;
+  *unnamed.mutable_spec() = small_compression();
+  auto filled = service_->submit(unnamed, alice);
+  ASSERT_TRUE(filled.ok()) << filled.status().to_string();
+  EXPECT_EQ(filled->job().spec().author(), "alice");
+  EXPECT_EQ(service_->get(filled->job().id(), alice)->spec().author(), "alice");
+
+  v1::SubmitJobRequest named = unnamed;
+  named.mutable_spec()->set_author("Alice Example");
+  auto kept = service_->submit(named, alice);
+  ASSERT_TRUE(kept.ok());
+  EXPECT_EQ(kept->job().spec().author(), "Alice Example");
+
+  v1::SubmitJobRequest oversized = unnamed;
+  oversized.mutable_spec()->set_author(std::string(service_->options().max_name_bytes + 1, 'a'));
+  auto refused = service_->submit(oversized, alice);
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("author"), std::string::npos) << refused.status().message();
+}
+
 // Validation and the memory estimate read one conversion of the spec: one
 // per submitted spec, for every scene (the long request id is refused before).
 TEST_F(JobServiceTest, SubmitConvertsEachSpecOnce) {

@@ -74,6 +74,30 @@ TEST_F(ServiceTest, SubmitWatchSucceedAndCurveEqualsLibrary) {
   for (std::size_t i = 0; i < force->value.size(); ++i) {
     EXPECT_LE(relative_difference(force->value[i], reference.curve[i].force_n), 1e-12) << "point " << i;
   }
+  // The client named the author (its user name); the worker wrote the XDMF
+  // sidecar, downloadable beside the file under the server's name.
+  {
+    hid_t file = H5Fopen(h5.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    hid_t author = H5Aopen_by_name(file, "/h5md/author", "name", H5P_DEFAULT, H5P_DEFAULT);
+    hid_t type = H5Aget_type(author);
+    std::string name(H5Tget_size(type), '\0');
+    H5Aread(author, type, name.data());
+    H5Tclose(type);
+    H5Aclose(author);
+    H5Fclose(file);
+    name.resize(name.find('\0') == std::string::npos ? name.size() : name.find('\0'));
+    EXPECT_FALSE(name.empty());
+    EXPECT_NE(name, "unknown");
+    EXPECT_EQ(name, get(id).spec().author());
+  }
+  const fs::path served = dir_ / (id + ".h5");
+  fs::copy_file(h5, served, fs::copy_options::overwrite_existing);
+  const fs::path sidecar = dir_ / (id + ".xdmf");
+  ASSERT_TRUE(client_->download(id, sidecar.string(), v1::RESULT_PART_XDMF).ok());
+  const std::string sidecar_xml = read_valid_xml(sidecar);
+  EXPECT_GE(
+      count_existing_items(served, sidecar_xml, std::regex(">\\./" + id + R"(\.h5:(/[^<]+)</DataItem>)")), 2);
+  EXPECT_NE(sidecar_xml.find("HyperSlab"), std::string::npos);
   const v1::Job job = get(id);
   EXPECT_EQ(job.state(), v1::Job::SUCCEEDED);
   EXPECT_EQ(job.attempt(), 1);
@@ -431,7 +455,7 @@ TEST_F(ServiceTest, ResultIsH5mdWithValidXdmfAndCliWorks) {
   EXPECT_GE(*frames, 2);  // reference and final at least
 
   const std::string xml = read_valid_xml(xdmf);
-  EXPECT_GE(count_existing_items(h5, xml, std::regex(R"(>cli\.h5:(/[^<]+)</DataItem>)")), 2 * *frames);
+  EXPECT_GE(count_existing_items(h5, xml, std::regex(R"(>\./cli\.h5:(/[^<]+)</DataItem>)")), 2 * *frames);
 
   // CSV: one line per point, the force column equal to the file's, and the
   // very text cellflow-run writes for the same spec.

@@ -11,8 +11,8 @@
 #include <sstream>
 
 #include "io/h5md.h"
-#include "physics/scenes/shear_flow/shear_flow.h"
 #include "jobs/job_spec.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
 #include "tests/service/service_harness.h"
 
 namespace cellflow::testing {
@@ -155,7 +155,7 @@ TEST_F(ServiceTest, ShearFlowJobStreamsSamplesAndWritesTrajectoryAndFlow) {
   const std::string header = run_command(std::string(CELLFLOW_H5DUMP) + " -H " + h5, &code);
   ASSERT_EQ(code, 0) << header;
   for (const char* needle : {"GROUP \"particles\"", "GROUP \"connectivity\"", "GROUP \"fields\"",
-                             "GROUP \"fluid_velocity\"", "DATASET \"frame_000000\"", "GROUP \"summary\""}) {
+                             "GROUP \"fluid_velocity\"", "GROUP \"edges\"", "GROUP \"summary\""}) {
     EXPECT_NE(header.find(needle), std::string::npos) << "missing " << needle;
   }
 
@@ -170,8 +170,9 @@ TEST_F(ServiceTest, ShearFlowJobStreamsSamplesAndWritesTrajectoryAndFlow) {
   const std::string xml = read_valid_xml(xdmf);
   EXPECT_NE(xml.find("TopologyType=\"Tetrahedron\""), std::string::npos);
   EXPECT_NE(xml.find("TopologyType=\"3DCoRectMesh\""), std::string::npos);
-  // 5 cell frames x (topology, geometry, region) + 5 fluid frames x velocity.
-  EXPECT_EQ(count_existing_items(fetched, xml, std::regex(R"(>flow\.h5:(/[^<]+)</DataItem>)")), 5 * 3 + 5);
+  // 5 times (cell and fluid snapshots together) x (topology, geometry, region
+  // of the cell + the fluid velocity), the file named with a directory part.
+  EXPECT_EQ(count_existing_items(fetched, xml, std::regex(R"(>\./flow\.h5:(/[^<]+)</DataItem>)")), 5 * 3 + 5);
 
   // result --csv: the D(t) table, one row per sample, the same as cellflow-run's.
   const std::string csv = run_command(cli + " result " + id + " --csv", &code);

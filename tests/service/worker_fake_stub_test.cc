@@ -50,6 +50,7 @@ struct FakeServer {
   int report_streams = 0;
   struct Upload {
     v1::Lease lease;
+    v1::ResultPart part = v1::RESULT_PART_HDF5;
     std::string data;
     std::int64_t next_offset = 0;
     bool offsets_contiguous = true;
@@ -120,6 +121,7 @@ class FakeUploadWriter final : public grpc::ClientWriterInterface<v1::UploadChun
 
   bool Write(const v1::UploadChunk& chunk, grpc::WriteOptions) override {
     if (first_) upload_.lease = chunk.lease();
+    if (first_) upload_.part = chunk.part();
     first_ = false;
     if (chunk.offset() != upload_.next_offset) upload_.offsets_contiguous = false;
     upload_.data += chunk.data();
@@ -332,8 +334,8 @@ class WorkerFakeStubTest : public ::testing::Test {
     for (const auto& request : server_->lease_requests) EXPECT_EQ(request.worker_id(), worker.id());
   }
 
-  // The attempt ran to the end: 3 force samples in order, an HDF5 upload and
-  // FinishJob, all under the lease token the fake handed out.
+  // The attempt ran to the end: 3 force samples in order, the XDMF sidecar
+  // and the HDF5 upload, FinishJob, all under the lease token the fake handed out.
   void expect_job_ran() {
     std::lock_guard lock(server_->mutex);
     const std::string& token = server_->job.lease().lease_token();
@@ -351,8 +353,14 @@ class WorkerFakeStubTest : public ::testing::Test {
     for (std::size_t i = 1; i < indices.size(); ++i) EXPECT_GT(indices[i], indices[i - 1]);
     EXPECT_EQ(indices.front(), 0);
 
-    ASSERT_EQ(server_->uploads.size(), 1u);
-    const auto& upload = server_->uploads.front();
+    ASSERT_EQ(server_->uploads.size(), 2u);
+    const auto& sidecar = server_->uploads.front();
+    EXPECT_EQ(sidecar.part, v1::RESULT_PART_XDMF);
+    EXPECT_EQ(sidecar.lease.lease_token(), token);
+    EXPECT_NE(sidecar.data.find("./job-1.h5:/particles/cell/position/value"), std::string::npos)
+        << sidecar.data;
+    const auto& upload = server_->uploads.back();
+    EXPECT_EQ(upload.part, v1::RESULT_PART_HDF5);
     EXPECT_EQ(upload.lease.lease_token(), token);
     EXPECT_TRUE(upload.offsets_contiguous);
     ASSERT_GE(upload.data.size(), 8u);

@@ -31,6 +31,11 @@ scenes::QuasiStaticOptions to_numerics(const v1::QuasiStaticNumerics& n) {
   } else if (n.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {
     options.volumetric = elastic::VolumetricTerm::kNodalAverage;
   }
+  if (n.contact_enforcement() == v1::CONTACT_ENFORCEMENT_AUGMENTED_LAGRANGIAN) {
+    options.contact_enforcement = scenes::ContactEnforcement::kAugmentedLagrangian;
+  }
+  if (n.has_contact_gap_tolerance_m()) options.contact_gap_tolerance_m = n.contact_gap_tolerance_m();
+  if (n.probe_contact() == v1::PROBE_CONTACT_SURFACE) options.probe_contact = scenes::ProbeContact::kSurface;
   return options;
 }
 

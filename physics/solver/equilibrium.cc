@@ -13,6 +13,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <type_traits>
 
 #include "physics/solver/equilibrium_internal.h"
 
@@ -50,10 +51,11 @@ std::string format_double(double value) {
 EquilibriumSolver::EquilibriumSolver(const elastic::ElasticBody& body,
                                      std::vector<std::int32_t> contact_vertices,
                                      std::span<const double> reference_positions_m,
-                                     EquilibriumOptions options)
+                                     EquilibriumOptions options, std::vector<std::int32_t> contact_triangles)
     : body_(&body),
       reference_positions_(reference_positions_m.begin(), reference_positions_m.end()),
       contact_vertices_(std::move(contact_vertices)),
+      contact_triangles_(std::move(contact_triangles)),
       options_(options),
       tangent_(body),
       preconditioning_(std::make_unique<Preconditioning>()) {
@@ -81,6 +83,31 @@ EquilibriumSolver::EquilibriumSolver(const elastic::ElasticBody& body,
     for (int e = 0; e < 9; ++e) contact_diagonal_slot_[9 * c + e] = block_slot[9 * contact_vertices_[c] + e];
   }
   contact_blocks_.assign(9 * contact_vertices_.size(), 0.0);
+  // Slots of the 9 vertex-pair blocks of each contact triangle: its edges are
+  // tet edges, so K holds them (rows sorted within a column).
+  auto slot_of = [&](std::size_t row, std::size_t col) -> std::int64_t {
+    const auto* first = inner + outer[col];
+    const auto* last = inner + outer[col + 1];
+    const auto* it =
+        std::lower_bound(first, last, static_cast<Eigen::SparseMatrix<double>::StorageIndex>(row));
+    return it != last && static_cast<std::size_t>(*it) == row ? outer[col] + (it - first) : -1;
+  };
+  const std::size_t triangles = contact_triangles_.size() / 3;
+  triangle_slots_.assign(81 * triangles, -1);
+  for (std::size_t t = 0; t < triangles; ++t) {
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        for (int a = 0; a < 3; ++a) {
+          for (int b = 0; b < 3; ++b) {
+            const std::size_t row = 3 * static_cast<std::size_t>(contact_triangles_[3 * t + i]) + a;
+            const std::size_t col = 3 * static_cast<std::size_t>(contact_triangles_[3 * t + j]) + b;
+            triangle_slots_[81 * t + 9 * (3 * i + j) + 3 * a + b] = slot_of(row, col);
+          }
+        }
+      }
+    }
+  }
+  triangle_blocks_.assign(81 * triangles, 0.0);
   // Vertex-block structure for the matrix-vector product, if K has it.
   bool blocked = true;
   block_neighbour_offsets_.assign(nv + 1, 0);
@@ -164,6 +191,19 @@ void EquilibriumSolver::assemble_tangent(const contact::Obstacles& obstacles, co
   for (std::size_t e = 0; e < contact_blocks_.size(); ++e) {
     if (contact_blocks_[e] != 0.0) values[contact_diagonal_slot_[e]] += contact_blocks_[e];
   }
+  // The probe on the surface triangles: the exact Hessian of the closest-point
+  // distance (the consistent tangent; measured against the positive
+  // semidefinite part in the scene tests).
+  if (obstacles.probe && !obstacles.probe_triangles.empty() &&
+      obstacles.probe_triangles.size() == contact_triangles_.size()) {
+    std::fill(triangle_blocks_.begin(), triangle_blocks_.end(), 0.0);
+    contact::add_probe_triangle_hessian(obstacles, y, triangle_blocks_.data(),
+                                        options_.positive_semidefinite_contact);
+    for (std::size_t e = 0; e < triangle_blocks_.size(); ++e) {
+      if (triangle_blocks_[e] != 0.0 && triangle_slots_[e] >= 0)
+        values[triangle_slots_[e]] += triangle_blocks_[e];
+    }
+  }
   for (std::size_t i = 0; i < diagonal_slot_.size(); ++i) {
     diagonal_[static_cast<Eigen::Index>(i)] = values[diagonal_slot_[i]];
   }
@@ -195,6 +235,26 @@ double EquilibriumSolver::contact_step_limit(const contact::Obstacles& obstacles
     const double approach = -(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]);  // gap decrease per unit step
     const double allowed = gap - (std::min(gap, range) - 0.5 * range);
     if (approach * limit > allowed) limit = allowed / approach;
+  }
+  if (obstacles.probe && !obstacles.probe_triangles.empty()) {
+    const std::size_t triangles = obstacles.probe_triangles.size() / 3;
+    triangle_gaps_.resize(triangles);
+    triangle_normals_.resize(3 * triangles);
+    triangle_barycentric_.resize(3 * triangles);
+    contact::probe_triangle_gaps(obstacles, y, triangle_gaps_.data(), triangle_normals_.data(),
+                                 triangle_barycentric_.data());
+    for (std::size_t t = 0; t < triangles; ++t) {
+      const double gap = triangle_gaps_[t];
+      if (!(gap > 0.0)) continue;
+      const double* n = triangle_normals_.data() + 3 * t;
+      double approach = 0.0;  // of the closest point, moving with the barycentric weights
+      for (int i = 0; i < 3; ++i) {
+        const double* d = dx.data() + 3 * static_cast<std::int64_t>(obstacles.probe_triangles[3 * t + i]);
+        approach -= triangle_barycentric_[3 * t + i] * (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]);
+      }
+      const double allowed = gap - (std::min(gap, range) - 0.5 * range);
+      if (approach * limit > allowed) limit = allowed / approach;
+    }
   }
   return limit;
 }

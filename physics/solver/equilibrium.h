@@ -78,7 +78,10 @@ struct EquilibriumOptions {
   bool hold_lateral_translation = true;  // project out x and y translation
   bool hold_spin_about_z = true;         // project out the rotation about z
   bool hold_rolling = true;              // project out the rotations about x and y
-  int threads = 0;                       // OpenMP threads; 0 = OpenMP default
+  // Probe on triangles: drop the term phi' hess d of the contact Hessian
+  // (Gauss-Newton tangent) instead of the exact one.
+  bool positive_semidefinite_contact = false;
+  int threads = 0;  // OpenMP threads; 0 = OpenMP default
 };
 
 enum class FailureCause { kNone, kNotConverged, kInverted, kNotFinite, kLineSearch };
@@ -108,8 +111,12 @@ class EquilibriumSolver {
  public:
   // `reference_positions_m` (3 per vertex) define the held modes: rigid
   // translations and rotations about the reference's vertex mean.
+  // `contact_triangles` (3 vertex indices each) are the surface triangles a
+  // probe may act on (Obstacles::probe_triangles must then be these): their
+  // vertex pairs get the contact Hessian blocks in K.
   EquilibriumSolver(const elastic::ElasticBody& body, std::vector<std::int32_t> contact_vertices,
-                    std::span<const double> reference_positions_m, EquilibriumOptions options);
+                    std::span<const double> reference_positions_m, EquilibriumOptions options,
+                    std::vector<std::int32_t> contact_triangles = {});
   ~EquilibriumSolver();
   EquilibriumSolver(const EquilibriumSolver&) = delete;
   EquilibriumSolver& operator=(const EquilibriumSolver&) = delete;
@@ -129,6 +136,7 @@ class EquilibriumSolver {
 
   const EquilibriumOptions& options() const { return options_; }
   std::span<const std::int32_t> contact_vertices() const { return contact_vertices_; }
+  std::span<const std::int32_t> contact_triangles() const { return contact_triangles_; }
   const elastic::ElasticBody& body() const { return *body_; }
 
  private:
@@ -139,9 +147,10 @@ class EquilibriumSolver {
                        double& energy, EquilibriumReport& report) const;
   void build_rigid_modes(const double* y);
   void project(Eigen::VectorXd& v) const;
-  // Largest step a <= 1 along dx after which no contact vertex outside an
-  // obstacle (gap g > 0) is deeper in the penalty range than half a range
-  // beyond where it is now: g + a n.dx >= min(g, r) - r / 2.
+  // Largest step a <= 1 along dx after which no contact vertex (or probe
+  // triangle's closest point) outside an obstacle (gap g > 0) is deeper in
+  // the penalty range than half a range beyond where it is now:
+  // g + a n.dx >= min(g, r) - r / 2.
   double contact_step_limit(const contact::Obstacles& obstacles, const double* y,
                             const Eigen::VectorXd& dx) const;
   double held_component(const Eigen::VectorXd& v) const;
@@ -155,6 +164,11 @@ class EquilibriumSolver {
   const elastic::ElasticBody* body_;
   std::vector<double> reference_positions_;
   std::vector<std::int32_t> contact_vertices_;
+  std::vector<std::int32_t> contact_triangles_;
+  std::vector<std::int64_t> triangle_slots_;  // 81 per contact triangle, into K's values (layout of
+                                              // contact::add_probe_triangle_hessian)
+  std::vector<double> triangle_blocks_;
+  mutable std::vector<double> triangle_gaps_, triangle_normals_, triangle_barycentric_;
   EquilibriumOptions options_;
   elastic::TangentAssembler tangent_;
   std::vector<std::int64_t> contact_diagonal_slot_;  // 9 per contact vertex, into K's values

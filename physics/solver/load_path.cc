@@ -1,14 +1,36 @@
 #include "physics/solver/load_path.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <utility>
+
+#include "physics/core/violations.h"
 
 namespace cellflow::solver {
 
 LoadPath::LoadPath(EquilibriumSolver& solver, ObstaclesAtLoad obstacles, std::vector<double> positions_m,
-                   double load_m)
-    : solver_(&solver), obstacles_(std::move(obstacles)), positions_(std::move(positions_m)), load_(load_m) {}
+                   double load_m, ContactEnforcement enforcement)
+    : solver_(&solver),
+      obstacles_(std::move(obstacles)),
+      positions_(std::move(positions_m)),
+      load_(load_m),
+      enforcement_(enforcement) {
+  if (enforcement_.augmented_lagrangian) {
+    const contact::Obstacles o = obstacles_(load_);
+    const std::size_t probe_constraints =
+        o.probe_triangles.empty() ? solver_->contact_vertices().size() : o.probe_triangles.size() / 3;
+    offsets_ =
+        contact::hard_contact_offsets(o.penalty, solver_->contact_vertices().size(), probe_constraints);
+  }
+}
+
+contact::Obstacles LoadPath::obstacles_at(double load_m) const {
+  contact::Obstacles o = obstacles_(load_m);
+  if (enforcement_.augmented_lagrangian) contact::attach_offsets(offsets_, o);
+  return o;
+}
 
 void LoadPath::push_out_of_obstacles(const contact::Obstacles& obstacles, std::vector<double>& y) const {
   // A vertex of the predicted state that lies deeper inside an obstacle's
@@ -22,7 +44,7 @@ void LoadPath::push_out_of_obstacles(const contact::Obstacles& obstacles, std::v
   const double range = obstacles.penalty.range_m;
   std::vector<double> gaps(m), normals(3 * m), current_gaps(m), current_normals(3 * m);
   contact::nearest_obstacle(obstacles, vertices, y.data(), gaps.data(), normals.data());
-  contact::nearest_obstacle(obstacles_(load_), vertices, positions_.data(), current_gaps.data(),
+  contact::nearest_obstacle(obstacles_at(load_), vertices, positions_.data(), current_gaps.data(),
                             current_normals.data());
   double depth_sum = 0.0;
   int in_contact = 0;
@@ -71,14 +93,60 @@ void LoadPath::predict(double target, const contact::Obstacles& obstacles, std::
 }
 
 bool LoadPath::try_step(double target, int depth, int max_depth, LoadStepReport& report) {
-  const contact::Obstacles obstacles = obstacles_(target);
+  const contact::Obstacles obstacles = obstacles_at(target);  // its offset spans see offsets_
+  const contact::ContactOffsets saved = offsets_;
+  if (enforcement_.augmented_lagrangian && has_previous_ && load_ != previous_load_) {
+    // The multipliers grow with the load as the positions do: extrapolate the
+    // offsets of the constraints loaded at both of the last two equilibria
+    // (the first solve then lands near the tolerance instead of at the
+    // penetration of the whole force increment).
+    const double ratio = (target - load_) / (load_ - previous_load_);
+    const double floor = obstacles.penalty.range_m;
+    auto extrapolate = [&](std::vector<double>& now, const std::vector<double>& before) {
+      if (before.size() != now.size()) return;
+      for (std::size_t j = 0; j < now.size(); ++j) {
+        if (now[j] > -floor && before[j] > -floor)
+          now[j] = std::max(now[j] + ratio * (now[j] - before[j]), -floor);
+      }
+    };
+    extrapolate(offsets_.lower_plate, previous_offsets_.lower_plate);
+    extrapolate(offsets_.upper_plate, previous_offsets_.upper_plate);
+    extrapolate(offsets_.probe, previous_offsets_.probe);
+  }
   std::vector<double> y;
   predict(target, obstacles, y);
   EquilibriumReport eq = solver_->solve(obstacles, y);
   report.newton_iterations += eq.newton_iterations;
   report.cg_iterations += eq.cg_iterations;
+  if (eq.converged && enforcement_.augmented_lagrangian) {
+    // Uzawa: move the law of each constraint by its gap and re-solve from
+    // the equilibrium just found, until the gaps are within the tolerance.
+    const std::span<const std::int32_t> vertices = solver_->contact_vertices();
+    for (int update = 0;; ++update) {
+      const double error = contact::gap_error(obstacles, vertices, y.data());
+      report.gap_error_m = error;
+      if (error <= enforcement_.gap_tolerance_m) break;
+      if (update == enforcement_.max_updates) {
+        eq.converged = false;
+        eq.cause = FailureCause::kNotConverged;
+        eq.message = "the contact gap stayed at " + number_text(error) + " m after " +
+                     std::to_string(update) + " augmented-Lagrangian updates (tolerance " +
+                     number_text(enforcement_.gap_tolerance_m) + " m)";
+        break;
+      }
+      contact::update_offsets(obstacles, vertices, y.data(), offsets_);
+      ++report.contact_updates;
+      EquilibriumReport again = solver_->solve(obstacles, y);
+      report.newton_iterations += again.newton_iterations;
+      report.cg_iterations += again.cg_iterations;
+      eq = std::move(again);
+      if (!eq.converged) break;
+    }
+  }
+  if (!eq.converged) offsets_ = saved;
   if (eq.converged) {
     previous_positions_ = std::move(positions_);
+    if (enforcement_.augmented_lagrangian) previous_offsets_ = saved;  // the offsets of the last equilibrium
     previous_load_ = load_;
     has_previous_ = true;
     positions_ = std::move(y);

@@ -13,6 +13,16 @@
 // Inside the range the force grows like depth^2, so a vertex left deep inside
 // costs Newton a halving of its excess per iteration; with this predictor a
 // load point of the 40-point curve takes 4-6 Newton iterations.
+//
+// Contact enforcement. With the augmented Lagrangian (ContactEnforcement) the
+// path owns the offsets of every constraint (physics/contact/rigid_contact.h)
+// and solves each load step as: equilibrium, Uzawa update of the offsets,
+// equilibrium again from there, until the gap error (|g| of each constraint
+// that carries force, the penetration of every other) is below the
+// tolerance. The offsets carry over from one load step to the next (the
+// multipliers of the last one are the best guess of the next). The plain
+// penalty (no updates) leaves each loaded vertex at the gap where the law
+// balances its force.
 #pragma once
 
 #include <functional>
@@ -28,21 +38,29 @@ namespace cellflow::solver {
 // The obstacles at load parameter t (metres of travel).
 using ObstaclesAtLoad = std::function<contact::Obstacles(double load_m)>;
 
+struct ContactEnforcement {
+  bool augmented_lagrangian = false;  // false: the plain penalty
+  double gap_tolerance_m = 0.0;       // largest gap error at an accepted load step
+  int max_updates = 30;               // Uzawa updates per load step before the step counts as failed
+};
+
 struct LoadStepReport {
   bool converged = false;
   std::string message;  // the cause when not converged (no step index: the caller adds it)
   FailureCause cause = FailureCause::kNone;
   int newton_iterations = 0;  // all sub-steps and failed attempts
   int cg_iterations = 0;
-  int step_splits = 0;     // halvings used
-  EquilibriumReport last;  // of the final sub-step
+  int step_splits = 0;       // halvings used
+  int contact_updates = 0;   // Uzawa updates of the offsets (all sub-steps)
+  double gap_error_m = 0.0;  // of the final state (augmented Lagrangian), contact::gap_error
+  EquilibriumReport last;    // of the final sub-step
 };
 
 class LoadPath {
  public:
   // `solver` must outlive the path; `positions_m` is the equilibrium at `load_m`.
   LoadPath(EquilibriumSolver& solver, ObstaclesAtLoad obstacles, std::vector<double> positions_m,
-           double load_m);
+           double load_m, ContactEnforcement enforcement = {});
 
   // Advances the equilibrium to `target_load_m`. On failure the state stays at
   // the last converged sub-step.
@@ -55,12 +73,16 @@ class LoadPath {
   bool try_step(double target, int depth, int max_depth, LoadStepReport& report);
   void predict(double target, const contact::Obstacles& obstacles, std::vector<double>& guess) const;
   void push_out_of_obstacles(const contact::Obstacles& obstacles, std::vector<double>& y) const;
+  // The obstacles at `load_m` with the offsets attached (augmented Lagrangian).
+  contact::Obstacles obstacles_at(double load_m) const;
 
   EquilibriumSolver* solver_;
   ObstaclesAtLoad obstacles_;
   std::vector<double> positions_, previous_positions_;
   double load_ = 0.0, previous_load_ = 0.0;
   bool has_previous_ = false;
+  ContactEnforcement enforcement_;
+  contact::ContactOffsets offsets_, previous_offsets_;  // at the current and the previous equilibrium
 };
 
 }  // namespace cellflow::solver

@@ -116,6 +116,27 @@ TEST(Compression, PenetrationStaysBelowHalfAPercentOfTheRadius) {
   for (const CurvePoint& p : r.curve) EXPECT_LE(p.residual, 1e-6);
 }
 
+// The augmented Lagrangian bounds the gap of every point by its tolerance
+// (penetration, and the stand-off of every loaded vertex), where the penalty
+// leaves the loaded vertices inside its contact layer; its curve lies above
+// the penalty's (no travel lost in the layer).
+TEST(Compression, AugmentedLagrangianBoundsTheGapAtEveryPoint) {
+  CompressionParams penalty = cell(300, 0.5, 0.6, 6);
+  CompressionParams augmented = penalty;
+  augmented.numerics.contact_enforcement = ContactEnforcement::kAugmentedLagrangian;
+  const QuasiStaticResult p = run_compression(penalty);
+  const QuasiStaticResult a = run_compression(augmented);
+  ASSERT_TRUE(p.status.ok()) << p.status.to_string();
+  ASSERT_TRUE(a.status.ok()) << a.status.to_string();
+  ASSERT_EQ(a.curve.size(), 6u);
+  for (std::size_t i = 0; i < a.curve.size(); ++i) {
+    EXPECT_LE(a.curve[i].max_penetration_m, kDefaultGapToleranceRadii * kRadius) << "point " << i;
+    EXPECT_LE(a.curve[i].gap_error_m, kDefaultGapToleranceRadii * kRadius) << "point " << i;
+    EXPECT_GT(a.curve[i].force_n, p.curve[i].force_n) << "point " << i;
+    if (i > 0) EXPECT_GT(a.curve[i].force_n, a.curve[i - 1].force_n);
+  }
+}
+
 // A coarse strain-hardening cell (300 vertices, w = 0.25) compressed to 0.9:
 // at 0.87 an element gives up its volume (J = 0.12; eq. 5's volumetric energy
 // is bounded as J -> 0). The run must end there naming the element, not

@@ -70,6 +70,29 @@ TEST(Indentation, ProbeSlippingBetweenVerticesEndsTheRunInsteadOfAWrongCurve) {
   for (std::size_t i = 1; i < r.curve.size(); ++i) EXPECT_GT(r.curve[i].force_n, r.curve[i - 1].force_n);
 }
 
+// The same probe acting on the surface triangles (closest points) meets a
+// continuous surface: nothing to slip between, the whole curve is monotone,
+// with no step larger than twice the one before it.
+TEST(Indentation, ProbeOnTheSurfaceTrianglesDoesNotSlip) {
+  IndentationParams p;
+  p.cell.radius_m = 8.6e-6;
+  p.cell.material = {.youngs_modulus_pa = 1000.0, .poisson_ratio = 0.48, .mooney_rivlin_w = 1.0};
+  p.cell.target_vertex_count = 1000;
+  p.probe_radius_m = 2.5e-6;
+  p.max_indentation_m = 2.0 * 0.5 * p.cell.radius_m;
+  p.load_points = 20;
+  p.numerics.threads = 1;
+  p.numerics.probe_contact = ProbeContact::kSurface;
+  p.numerics.contact_enforcement = ContactEnforcement::kAugmentedLagrangian;
+  const QuasiStaticResult r = run_indentation(p);
+  ASSERT_TRUE(r.status.ok()) << r.status.to_string();
+  ASSERT_EQ(r.curve.size(), 20u);
+  for (std::size_t i = 1; i < r.curve.size(); ++i) {
+    EXPECT_GT(r.curve[i].force_n, r.curve[i - 1].force_n) << "point " << i;
+    EXPECT_LE(r.curve[i].max_penetration_m, kDefaultGapToleranceRadii * p.cell.radius_m) << "point " << i;
+  }
+}
+
 TEST(Indentation, CurveIsMonotoneAndBalanced) {
   const QuasiStaticResult r = run_indentation(particle(800, 0.6, 6));
   ASSERT_TRUE(r.status.ok()) << r.status.to_string();

@@ -1,28 +1,38 @@
 #!/usr/bin/env python3
-"""cellflow's default compression curves against the CalculiX references.
+"""cellflow's default contact curves against the CalculiX references.
 
-Runs build/bin/cellflow-run on the issue's plate cases (R = 8.6 um, E = 150 Pa,
-nu = 0.48, w = 1, 0.5, 0.25, 40 load points to deformation 0.8, default
-numerics) and prints the relative force difference against
-validation/fe/curves/plates_w*.csv (linear interpolation in deformation),
-from deformation 0.02 on.
+Runs build/bin/cellflow-run on the issue's cases at default numerics and
+prints the relative force difference against validation/fe/curves/*.csv
+(linear interpolation in deformation or indentation) and the run time:
+  plates_w1, plates_w0.5, plates_w0.25: R = 8.6 um, E = 150 Pa, nu = 0.48,
+      40 load points to deformation 0.8, errors from deformation 0.02 on;
+  colloidal_probe: R = 40 um, Rp = 26.5 um, E = 580 Pa, 40 points to 20 um,
+      errors from 0.25 um on;
+  small_probe: R = 8 um, Rp = 2.5 um, E = 1000 Pa, 40 points to 2 um,
+      errors from 0.1 um on.
 
-    python3 validation/fe/compare_cellflow.py [build-dir]
+    python3 validation/fe/compare_cellflow.py [build-dir] [--numerics JSON]
+        [--cases NAME ...] [--vertices N]
+
+--numerics merges a QuasiStaticNumerics JSON object into every spec (e.g.
+'{"contactEnforcement": "CONTACT_ENFORCEMENT_PENALTY",
+  "probeContact": "PROBE_CONTACT_VERTICES"}' for the contact before issue 11).
 """
+import argparse
 import bisect
 import csv
 import json
 import os
 import subprocess
-import sys
 import tempfile
+import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def reference(name):
+def reference(name, column):
     with open(os.path.join(HERE, "curves", name + ".csv")) as f:
-        rows = [(float(r["deformation"]), float(r["force_n"])) for r in csv.DictReader(f)]
+        rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
     xs = [d for d, _ in rows]
     ys = [f for _, f in rows]
 
@@ -36,33 +46,70 @@ def reference(name):
     return at
 
 
+def cell(radius, modulus, w):
+    return {"radiusM": radius, "material": {"youngsModulusPa": modulus, "poissonRatio": 0.48,
+                                            "mooneyRivlinW": w}}
+
+
+# name: (spec, x column in the reference, x of a cellflow row, smallest x compared, end, unit, scale)
+CASES = {
+    "plates_w1": ({"compression": {"cell": cell(8.6e-6, 150, 1.0), "maxDeformation": 0.8, "loadPoints": 40}},
+                  "deformation", "deformation", 0.02, 0.8, "", 1.0),
+    "plates_w0.5": ({"compression": {"cell": cell(8.6e-6, 150, 0.5), "maxDeformation": 0.8, "loadPoints": 40}},
+                    "deformation", "deformation", 0.02, 0.8, "", 1.0),
+    "plates_w0.25": ({"compression": {"cell": cell(8.6e-6, 150, 0.25), "maxDeformation": 0.8,
+                                      "loadPoints": 40}}, "deformation", "deformation", 0.02, 0.8, "", 1.0),
+    "colloidal_probe": ({"indentation": {"cell": cell(40e-6, 580, 1.0), "probeRadiusM": 26.5e-6,
+                                         "maxIndentationM": 20e-6, "loadPoints": 40}},
+                        "indentation_m", "displacement_m", 0.25e-6, 20e-6, " um", 1e6),
+    "small_probe": ({"indentation": {"cell": cell(8e-6, 1000, 1.0), "probeRadiusM": 2.5e-6,
+                                     "maxIndentationM": 2e-6, "loadPoints": 40}},
+                    "indentation_m", "displacement_m", 0.1e-6, 2e-6, " um", 1e6),
+}
+
+
 def main():
-    build = sys.argv[1] if len(sys.argv) > 1 else "build"
-    runner = os.path.join(build, "bin", "cellflow-run")
+    parser = argparse.ArgumentParser()
+    parser.add_argument("build", nargs="?", default="build")
+    parser.add_argument("--numerics", default="{}")
+    parser.add_argument("--cases", nargs="*", default=list(CASES))
+    parser.add_argument("--vertices", type=int, default=0)
+    args = parser.parse_args()
+    runner = os.path.join(args.build, "bin", "cellflow-run")
     env = dict(os.environ, OMP_WAIT_POLICY="passive")
-    for w, name in (("1", "plates_w1"), ("0.5", "plates_w0.5"), ("0.25", "plates_w0.25")):
-        spec = {"compression": {"cell": {"radiusM": 8.6e-6, "material": {
-            "youngsModulusPa": 150, "poissonRatio": 0.48, "mooneyRivlinW": float(w)}},
-            "maxDeformation": 0.8, "loadPoints": 40}}
+    numerics = json.loads(args.numerics)
+    for name in args.cases:
+        spec, ref_col, row_col, first, end, unit, scale = CASES[name]
+        spec = json.loads(json.dumps(spec))
+        scene = next(iter(spec))
+        if numerics:
+            spec[scene]["numerics"] = numerics
+        if args.vertices:
+            spec[scene]["cell"]["targetVertexCount"] = args.vertices
         with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
             json.dump(spec, f)
+        start = time.time()
         run = subprocess.run([runner, "-q", "-j", "1", f.name], capture_output=True, text=True, env=env)
+        seconds = time.time() - start
         os.unlink(f.name)
-        at = reference(name)
+        at = reference(name, ref_col)
         errors = []
         for r in csv.DictReader(run.stdout.splitlines()):
-            d, force = float(r["deformation"]), float(r["force_n"])
-            ref = at(d)
-            if ref and d >= 0.02 - 1e-12:
-                errors.append((d, force / ref - 1.0))
+            x, force = float(r[row_col]), float(r["force_n"])
+            ref = at(x)
+            if ref and x >= first * (1 - 1e-9):
+                errors.append((x, force / ref - 1.0, float(r["max_penetration_m"])))
         if not errors:
-            print(f"w = {w}: no points ({run.stderr.strip()})")
+            print(f"{name}: no points ({run.stderr.strip()})")
             continue
         worst = max(errors, key=lambda e: abs(e[1]))
         last = errors[-1][0]
-        status = "reached 0.8" if last > 0.799 else f"stopped at {last:.3f}: {run.stderr.strip()}"
-        print(f"w = {w}: largest |error| {100 * abs(worst[1]):.2f} % at {worst[0]:.3f}; {status}")
-        print("   " + "  ".join(f"{d:.2f}: {100 * e:+.2f} %" for d, e in errors if round(d * 40) % 4 == 0))
+        status = (f"reached {end * scale:g}{unit}" if last > end * (1 - 1e-3)
+                  else f"stopped at {last * scale:.3f}{unit}: {run.stderr.strip()}")
+        print(f"{name}: largest |error| {100 * abs(worst[1]):.2f} % at {worst[0] * scale:.3f}{unit}; "
+              f"{status}; {seconds:.1f} s; max penetration {max(e[2] for e in errors):.2e} m")
+        print("   " + "  ".join(f"{d * scale:.3g}: {100 * e:+.2f} %"
+                                for i, (d, e, _) in enumerate(errors) if i % 4 == 0 or i < 4))
 
 
 if __name__ == "__main__":

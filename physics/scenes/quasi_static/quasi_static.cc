@@ -7,6 +7,7 @@
 
 #include "physics/cell/cell_body.h"
 #include "physics/contact/rigid_contact.h"
+#include "physics/contact/surface_triangles.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/observables/shape.h"
@@ -50,6 +51,9 @@ constexpr double kMinContactStiffnessER = 1e-2, kMaxContactStiffnessER = 1e5;
 // scales the stiffness by default range / range: 1e-300 gave k = inf).
 constexpr double kMaxContactRangeRadii = 0.1;
 constexpr double kMinContactRangeRadii = 1e-5;
+// Gap tolerance of the augmented Lagrangian: below 1e-8 R the gap is below
+// the rounding of the positions' updates; above 1e-2 R it is the penalty's.
+constexpr double kMinGapToleranceRadii = 1e-8, kMaxGapToleranceRadii = 1e-2;
 // Smallest element volume ratio J a load point may reach. Converged curves to
 // deformation 0.9 reach 0.34-0.49 (nu 0.45-0.499); collapsing ones fall
 // below 0.1 (bench/stability). Below it the point is not trusted.
@@ -119,6 +123,14 @@ Violations check_numerics(const QuasiStaticOptions& n, const cell::CellParams& c
             " radius_m] = " + real_range(kMinContactRangeRadii * radius_m, kMaxContactRangeRadii * radius_m) +
             " (or unset for the default)");
   }
+  if (n.contact_gap_tolerance_m && !(*n.contact_gap_tolerance_m >= kMinGapToleranceRadii * radius_m &&
+                                     *n.contact_gap_tolerance_m <= kMaxGapToleranceRadii * radius_m)) {
+    v.add_value(
+        "contact_gap_tolerance_m", *n.contact_gap_tolerance_m,
+        "lie in [" + number_text(kMinGapToleranceRadii) + ", " + number_text(kMaxGapToleranceRadii) +
+            "] radius_m = " + interval(kMinGapToleranceRadii * radius_m, kMaxGapToleranceRadii * radius_m) +
+            " (or unset for the default)");
+  }
   if (n.threads < 0 || n.threads > kMaxThreads) {
     v.add("threads", "= " + std::to_string(n.threads) + " must " + int_range(0, kMaxThreads));
   }
@@ -154,6 +166,7 @@ struct Setup {
   mesh::TetMesh mesh;  // centred at the origin
   elastic::ElasticBody body;
   std::vector<std::int32_t> surface_vertices;
+  std::vector<std::int32_t> surface_triangles;  // filled where the probe acts on the surface
   contact::PenaltyParams penalty;
   double z_top_m = 0.0, z_bottom_m = 0.0;  // extreme surface vertex heights
 };
@@ -187,6 +200,18 @@ StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& 
   if (numerics.contact_stiffness_n_per_m)
     setup.penalty.stiffness_n_per_m = *numerics.contact_stiffness_n_per_m;
   return setup;
+}
+
+// Distance of the obstacles' starting surfaces from the cell: the zero-force
+// distance of the law (hard contact with the augmented Lagrangian).
+double start_distance(const Setup& setup, const QuasiStaticOptions& numerics) {
+  return numerics.contact_enforcement == ContactEnforcement::kAugmentedLagrangian ? 0.0
+                                                                                  : setup.penalty.range_m;
+}
+
+// Height of the cell's bounding box.
+double cell_extent(const Setup& setup) {
+  return setup.z_top_m - setup.z_bottom_m;
 }
 
 // Threads that pay for a solve of this size when the caller asked for none in
@@ -223,8 +248,13 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
   QuasiStaticResult result;
   if (callbacks.on_mesh) callbacks.on_mesh(setup.mesh);
   solver::EquilibriumSolver solver(setup.body, setup.surface_vertices, setup.mesh.positions_m,
-                                   solver_options(numerics, cell, setup.mesh.num_vertices()));
-  solver::LoadPath path(solver, std::move(obstacles), setup.mesh.positions_m, 0.0);
+                                   solver_options(numerics, cell, setup.mesh.num_vertices()),
+                                   setup.surface_triangles);
+  solver::ContactEnforcement enforcement;
+  enforcement.augmented_lagrangian = numerics.contact_enforcement == ContactEnforcement::kAugmentedLagrangian;
+  enforcement.gap_tolerance_m =
+      numerics.contact_gap_tolerance_m.value_or(kDefaultGapToleranceRadii * cell.radius_m);
+  solver::LoadPath path(solver, std::move(obstacles), setup.mesh.positions_m, 0.0, enforcement);
   const double diameter = 2.0 * cell.radius_m;
   for (int i = 0; i < load_points; ++i) {
     if (callbacks.should_stop && callbacks.should_stop()) {
@@ -279,6 +309,8 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
     point.volume_m3 = shape.volume_m3;
     point.elastic_energy_j = step.last.elastic_energy_j;
     point.max_penetration_m = step.last.contact.max_penetration_m;
+    point.gap_error_m = step.gap_error_m;
+    point.contact_updates = step.contact_updates;
     point.newton_iterations = step.newton_iterations;
     point.cg_iterations = step.cg_iterations;
     point.step_splits = step.step_splits;
@@ -374,9 +406,11 @@ QuasiStaticResult run_compression(const Checked<CompressionParams>& checked,
   StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "compression.");
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
-  // Plates start at the zero-force distance (the penalty range) from the
-  // extreme vertices: first contact, no force at zero travel.
-  const double range = setup.penalty.range_m;
+  // Plates start at the zero-force distance from the extreme vertices: first
+  // contact, no force at zero travel. That is the surface itself with the
+  // augmented Lagrangian (hard-contact offsets, no force at gap >= 0), the
+  // penalty range with the plain penalty.
+  const double range = start_distance(setup, params.numerics);
   const double lower_z = setup.z_bottom_m - range;
   const double upper_z0 = setup.z_top_m + range;
   const contact::PenaltyParams penalty = setup.penalty;
@@ -403,8 +437,10 @@ QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
   StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "indentation.");
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
-  const double range = setup.penalty.range_m;
+  const double range = start_distance(setup, params.numerics);
   const double lower_z = setup.z_bottom_m - range;
+  if (params.numerics.probe_contact == ProbeContact::kSurface)
+    setup.surface_triangles = contact::boundary_triangles(setup.mesh.tets, setup.mesh.positions_m.data());
   // Probe on the z axis, lowered until its zero-force surface (radius Rp + r)
   // touches the first surface vertex: z_c = max_v z_v + sqrt((Rp + r)^2 - rho_v^2).
   const double reach = params.probe_radius_m + range;
@@ -418,11 +454,37 @@ QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
   if (lowest > -1e300) centre_z0 = lowest;
   const contact::PenaltyParams penalty = setup.penalty;
   const double probe_radius = params.probe_radius_m;
+  const std::span<const std::int32_t> triangles = setup.surface_triangles;
+  if (!triangles.empty()) {
+    // On the surface the first contact is with a triangle, at or above the
+    // first vertex: bisect the centre height where the nearest triangle is
+    // at the zero-force distance Rp + r (the vertices' height has it at or
+    // below, the top of the cell plus Rp + r far above).
+    auto nearest = [&](double z) {
+      contact::Obstacles o;
+      o.penalty = penalty;
+      o.probe = contact::Probe{.centre_m = {0.0, 0.0, z}, .radius_m = reach};
+      o.probe_triangles = triangles;
+      std::vector<double> gaps(triangles.size() / 3), normals(triangles.size()), bary(triangles.size());
+      contact::probe_triangle_gaps(o, setup.mesh.positions_m.data(), gaps.data(), normals.data(),
+                                   bary.data());
+      return *std::min_element(gaps.begin(), gaps.end());
+    };
+    double low = centre_z0, high = setup.z_top_m + reach + cell_extent(setup);
+    if (nearest(low) < 0.0) {
+      for (int i = 0; i < 100 && high - low > 1e-12 * reach; ++i) {
+        const double middle = 0.5 * (low + high);
+        (nearest(middle) < 0.0 ? low : high) = middle;
+      }
+      centre_z0 = high;
+    }
+  }
   auto obstacles = [=](double travel_m) {
     contact::Obstacles o;
     o.penalty = penalty;
     o.lower_plate_z_m = lower_z;
     o.probe = contact::Probe{.centre_m = {0.0, 0.0, centre_z0 - travel_m}, .radius_m = probe_radius};
+    o.probe_triangles = triangles;
     return o;
   };
   const cell::CellParams& cell = params.cell;

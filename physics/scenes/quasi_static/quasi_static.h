@@ -31,6 +31,37 @@
 
 namespace cellflow::scenes {
 
+// How the contact constraint is enforced (physics/solver/load_path.h).
+// Measured against the CalculiX plate references (validation/fe/
+// compare_cellflow.py, 3000 vertices, 40 points to 0.8, 2026-12-01): the
+// augmented Lagrangian removes the penalty's stand-off, which made the
+// curves soft at large deformation (w = 1 at 0.74: -1.63 % -> -0.35 %;
+// w = 0.5: -2.93 % -> -0.72 %), but at small deformation the stand-off hid
+// the coarse contact's stiffness (0.02: +0.95 % -> +2.81 %), Newton fails at
+// 0.76 for w = 0.5 (the penalty reaches 0.8) and a curve costs 1.5 x the
+// time (w = 1: 11.2 s against 7.3 s). So the penalty stays the default. At
+// 12000 vertices (w = 1, to 0.6) the augmented Lagrangian is within 0.5 %
+// (-0.19 % at 0.6) where the penalty stalls at -0.84 %: the stand-off is
+// the floor of the penalty's mesh convergence.
+enum class ContactEnforcement {
+  kPenalty,              // the plain penalty: each loaded vertex rests at the gap that balances it
+  kAugmentedLagrangian,  // Uzawa updates until the gap error is below contact_gap_tolerance_m
+};
+
+// What the probe acts on (physics/contact/rigid_contact.h). Measured against
+// the CalculiX references (validation/fe/compare_cellflow.py, 3000
+// vertices, augmented Lagrangian): colloidal probe, largest error over
+// 0.25-20 um 11.3 % on the vertices, 17.1 % on the surface (+2 to +5 % from
+// 4.5 um on, where the vertices are within 2.2 %); small probe over 0.1-2 um
+// 13.1 % against 24.1 %. On the surface the curve is smooth and monotone but
+// stiff: a flat triangle cannot wrap the sphere, so its vertices stand off
+// it (vertices alone let the flat faces cut into it). Vertices stay the
+// default until the mesh resolves the contact (a mesh graded to the pole).
+enum class ProbeContact {
+  kVertices,  // the surface vertices (a probe narrower than the mesh spacing slips between them)
+  kSurface,   // the closest point of each surface triangle: a continuous surface for any probe radius
+};
+
 struct QuasiStaticOptions {
   // ||f||_2 / (E R^2) at equilibrium, f the out-of-balance vertex forces
   // (E of the cytoplasm); in [1e-12, 1e-2]
@@ -53,7 +84,17 @@ struct QuasiStaticOptions {
   // tets around each vertex (default; linear tets with their own J lock at
   // nu = 0.48 and converge slowly, see elastic_body.h) or per tet as in the paper.
   elastic::VolumetricTerm volumetric = elastic::VolumetricTerm::kNodalAverage;
+  ContactEnforcement contact_enforcement = ContactEnforcement::kPenalty;
+  // Largest gap error of a load point with the augmented Lagrangian: |gap|
+  // of each contact that carries force, the penetration of any other. Unset:
+  // kDefaultGapToleranceRadii R. In [1e-8, 1e-2] R.
+  std::optional<double> contact_gap_tolerance_m;
+  ProbeContact probe_contact = ProbeContact::kVertices;
 };
+
+// Default gap tolerance of the augmented Lagrangian, in cell radii (see
+// quasi_static.cc for the measurement).
+inline constexpr double kDefaultGapToleranceRadii = 1e-4;
 
 // Points of a curve after first contact, unless the spec says otherwise.
 inline constexpr int kDefaultLoadPoints = 40;
@@ -118,7 +159,9 @@ struct CurvePoint {
   double semi_axes_m[3] = {0, 0, 0};
   double volume_m3 = 0.0;
   double elastic_energy_j = 0.0;
-  double max_penetration_m = 0.0;  // deepest vertex beyond a plate/probe surface
+  double max_penetration_m = 0.0;  // deepest vertex (probe: triangle) beyond a plate/probe surface
+  double gap_error_m = 0.0;        // augmented Lagrangian: largest |gap| of a loaded contact at the end
+  int contact_updates = 0;         // augmented-Lagrangian (Uzawa) updates of this point
   int newton_iterations = 0;       // all Newton iterations of this point (sub-steps included)
   int cg_iterations = 0;           // conjugate-gradient iterations of this point
   int step_splits = 0;             // halvings of this load step

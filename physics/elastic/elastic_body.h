@@ -76,7 +76,7 @@ const char* tet_simd_name(TetSimd simd);
 
 // The serial building block of add_elastic_forces: energy and forces of the
 // tets [begin_tet, end_tet) only, on the calling thread, at SIMD level `simd`
-// (which must be supported, tet_simd_supported).
+// (one the CPU lacks, tet_simd_supported, runs the generic copy).
 ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
                                               double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
                                               TetSimd simd = TetSimd::kAuto);

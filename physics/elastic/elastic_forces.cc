@@ -142,8 +142,11 @@ __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) double evaluate_ra
 }
 #endif
 
+// kAuto is the best level; a level the CPU lacks runs the generic copy
+// rather than faulting on an illegal instruction.
 TetSimd resolve_tet_simd(TetSimd requested) {
-  return requested == TetSimd::kAuto ? best_tet_simd() : requested;
+  if (requested == TetSimd::kAuto) return best_tet_simd();
+  return tet_simd_supported(requested) ? requested : TetSimd::kGeneric;
 }
 
 template <bool kMooneyRivlin, bool kForces>

@@ -39,9 +39,8 @@ using detail::volumetric_pressures;
 constexpr int kLanes = 16;
 
 struct TetBlock {
-  alignas(64) double y[12 * kLanes];  // y[kLanes (3 a + i) + lane] = y_i of local vertex a
-  alignas(64) double b[9 * kLanes];   // B_k at [kLanes k + lane]
-  alignas(64) double volume[kLanes], mu1[kLanes], mu2[kLanes], kappa[kLanes], pressure[kLanes];
+  alignas(64) double y[12 * kLanes];       // y[kLanes (3 a + i) + lane] = y_i of local vertex a
+  alignas(64) double b[9 * kLanes];        // B_k at [kLanes k + lane]
   alignas(64) double forces[12 * kLanes];  // as y
   kernel::TetStressLanes<kLanes> stress;
 };
@@ -58,28 +57,33 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
   const double* mu1 = body.mu1_pa.data();
   const double* mu2 = body.mu2_pa.data();
   const double* kappa = body.kappa_pa.data();
+  // mu2 (neo-Hookean: 0), kappa and the pressure as products with 1 or 0
+  // (exact) rather than selects, which would stop the lane loop vectorising.
+  const double mu2_scale = kMooneyRivlin ? 1.0 : 0.0;
+  const double kappa_scale = tet_pressure == nullptr ? 1.0 : 0.0;
+  const double pressure_scale = tet_pressure == nullptr ? 0.0 : 1.0;
+  const double* pressure = tet_pressure == nullptr ? kappa : tet_pressure;
   TetBlock blk;
   double energy = 0.0;
   for (std::int64_t first = begin; first < end; first += kLanes) {
     const int size = static_cast<int>(std::min<std::int64_t>(kLanes, end - first));
-    // Gather; the lanes past the end of the range repeat its last tet (valid
-    // arithmetic, results unused).
-    for (int lane = 0; lane < kLanes; ++lane) {
-      const std::int64_t t = first + std::min(lane, size - 1);
+    // Gather the positions and B into lanes (the material is read in place).
+    for (int lane = 0; lane < size; ++lane) {
+      const std::int64_t t = first + lane;
       const std::int32_t* v = tets + 4 * t;
       for (int a = 0; a < 4; ++a) {
         const double* ya = y + 3 * static_cast<std::int64_t>(v[a]);
         for (int i = 0; i < 3; ++i) blk.y[kLanes * (3 * a + i) + lane] = ya[i];
       }
       for (int k = 0; k < 9; ++k) blk.b[kLanes * k + lane] = b_matrix[9 * t + k];
-      blk.volume[lane] = volume[t];
-      blk.mu1[lane] = mu1[t];
-      blk.mu2[lane] = kMooneyRivlin ? mu2[t] : 0.0;
-      blk.kappa[lane] = tet_pressure == nullptr ? kappa[t] : 0.0;
-      blk.pressure[lane] = tet_pressure == nullptr ? 0.0 : tet_pressure[t];
     }
+    const double* volume_b = volume + first;
+    const double* mu1_b = mu1 + first;
+    const double* mu2_b = mu2 + first;
+    const double* kappa_b = kappa + first;
+    const double* pressure_b = pressure + first;
 #pragma omp simd
-    for (int lane = 0; lane < kLanes; ++lane) {
+    for (int lane = 0; lane < size; ++lane) {
       kernel::TetStressLanes<kLanes>& s = blk.stress;
       const double* yl = blk.y + lane;
       const double det_f = kernel::deformation_gradient<kLanes>(
@@ -87,11 +91,11 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
       s.det_f[lane] = det_f;
       // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
       const double j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
-      kernel::stress_from_gradient<kMooneyRivlin>(blk.mu1[lane], blk.mu2[lane], blk.kappa[lane], j_m13, s,
-                                                  lane, blk.pressure[lane]);
+      kernel::stress_from_gradient<kMooneyRivlin>(mu1_b[lane], mu2_scale * mu2_b[lane],
+                                                  kappa_scale * kappa_b[lane], j_m13, s, lane,
+                                                  pressure_scale * pressure_b[lane]);
       if constexpr (kForces) {
-        kernel::forces_from_stress<kLanes>(blk.b + lane, blk.volume[lane], s.stress + lane,
-                                           blk.forces + lane);
+        kernel::forces_from_stress<kLanes>(blk.b + lane, volume_b[lane], s.stress + lane, blk.forces + lane);
       }
     }
     for (int lane = 0; lane < size; ++lane) {
@@ -100,7 +104,7 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
         first_inverted = std::min(first_inverted, t);
         continue;
       }
-      energy += blk.volume[lane] * blk.stress.energy_density[lane];
+      energy += volume[t] * blk.stress.energy_density[lane];
       if constexpr (kForces) {
         const std::int32_t* v = tets + 4 * t;
         for (int a = 0; a < 4; ++a) {

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <bit>
+#include <cstddef>
 #include <cstdint>
 
 namespace cellflow::elastic::kernel {
@@ -63,18 +64,20 @@ struct TetParams {
 // below vectorises across tets.
 template <int kLanes>
 struct TetStressLanes {
-  alignas(64) double f[9 * kLanes];        // deformation gradient F
-  alignas(64) double cof[9 * kLanes];      // cofactor J F^-T = dJ/dF
-  alignas(64) double fc[9 * kLanes];       // F C with C = F^T F (Mooney-Rivlin only)
-  alignas(64) double c[9 * kLanes];        // C = F^T F (Mooney-Rivlin only)
-  alignas(64) double stress[9 * kLanes];   // nominal stress P = dU/dF
-  alignas(64) double det_f[kLanes];        // J = det F
-  alignas(64) double inv_det[kLanes];      // 1 / J
-  alignas(64) double j_m23[kLanes];        // J^-2/3
-  alignas(64) double j_m43[kLanes];        // J^-4/3
-  alignas(64) double trace_c[kLanes];      // tr C
-  alignas(64) double k_numerator[kLanes];  // ((tr C)^2 - tr C^2) / 2
-  alignas(64) double energy_density[kLanes];
+  // Cache-line rows for a lane block; one tet keeps the plain double layout.
+  static constexpr std::size_t kAlign = kLanes > 1 ? 64 : alignof(double);
+  alignas(kAlign) double f[9 * kLanes];        // deformation gradient F
+  alignas(kAlign) double cof[9 * kLanes];      // cofactor J F^-T = dJ/dF
+  alignas(kAlign) double fc[9 * kLanes];       // F C with C = F^T F (Mooney-Rivlin only)
+  alignas(kAlign) double c[9 * kLanes];        // C = F^T F (Mooney-Rivlin only)
+  alignas(kAlign) double stress[9 * kLanes];   // nominal stress P = dU/dF
+  alignas(kAlign) double det_f[kLanes];        // J = det F
+  alignas(kAlign) double inv_det[kLanes];      // 1 / J
+  alignas(kAlign) double j_m23[kLanes];        // J^-2/3
+  alignas(kAlign) double j_m43[kLanes];        // J^-4/3
+  alignas(kAlign) double trace_c[kLanes];      // tr C
+  alignas(kAlign) double k_numerator[kLanes];  // ((tr C)^2 - tr C^2) / 2
+  alignas(kAlign) double energy_density[kLanes];
 };
 using TetStress = TetStressLanes<1>;
 

@@ -1,7 +1,10 @@
 // Throughput of the elastic force kernel and the tangent assembly on a
 // structured tetrahedral box (32^3 cubes x 6 = 196608 tets, 35937 vertices)
 // under a random smooth deformation. Counters: tets_per_s (whole call) and
-// tets_per_s_per_thread. Run with --benchmark_repetitions=5 and quote medians.
+// tets_per_s_per_thread, tets_per_cpu_s (the per-core rate on a shared
+// machine). Run with --benchmark_repetitions=5 and quote medians.
+// BM_ElasticForcesSimd runs each SIMD copy of the force loop (generic SSE2,
+// AVX2, AVX-512; the library picks the best at run time) on one thread.
 //
 // BM_ElasticForcesColoured* are the alternative race-free scatter (graph
 // colouring of the tets, one parallel loop per colour) measured against the
@@ -102,6 +105,33 @@ BENCHMARK(BM_ElasticForces)
     ->Args({2, 0})
     ->Args({1, 1})
     ->Args({2, 1})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+// One SIMD copy of the force loop on one thread (add_elastic_forces_of_range
+// over all tets). args: level (1 generic SSE2, 2 AVX2, 3 AVX-512), Mooney-Rivlin.
+void BM_ElasticForcesSimd(benchmark::State& state) {
+  const TetSimd level = static_cast<TetSimd>(state.range(0));
+  if (!tet_simd_supported(level)) {
+    state.SkipWithError("SIMD level not supported by this CPU");
+    return;
+  }
+  const Scene& s = scene(mooney_rivlin_w(state));
+  const std::int64_t num_tets = static_cast<std::int64_t>(s.body.num_tets());
+  std::vector<double> forces(s.positions.size(), 0.0);
+  const double cpu_start = process_cpu_seconds();
+  for (auto _ : state) {
+    const ElasticEvaluation eval =
+        add_elastic_forces_of_range(s.body, s.positions.data(), forces.data(), 0, num_tets, level);
+    benchmark::DoNotOptimize(eval);
+    benchmark::ClobberMemory();
+  }
+  set_counters(state, s.body.num_tets(), 1, process_cpu_seconds() - cpu_start);
+  state.SetLabel(tet_simd_name(level));
+}
+BENCHMARK(BM_ElasticForcesSimd)
+    ->ArgNames({"level", "mooney_rivlin"})
+    ->ArgsProduct({{1, 2, 3}, {0, 1}})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 

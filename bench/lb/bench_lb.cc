@@ -14,10 +14,16 @@
 //   update_GBps: a[i] = s a[i]  (in place: 16 bytes per element, no write-allocate)
 // Bytes per lattice update (counted like STREAM): 2 x 19 x sizeof(T), plus
 // 6 x sizeof(T) when coupled (3 force reads, 3 velocity writes).
-//   roofline_MLUPS = copy_GBps / bytes_per_update,  frac_roof = MLUPS / roofline_MLUPS
-// The AA pattern reads and writes the same lines, so its traffic really is
-// 2 x 19 x sizeof(T); a two-array update also pays the write-allocate like
-// STREAM copy does. frac_update_roof is MLUPS against update_GBps.
+// The ceiling is the bandwidth of the memory pattern the scheme really has:
+//   AA pattern (in place): it reads and writes the same lines, 2 x 19 x sizeof(T)
+//     really moved and no write-allocate, like update: ceiling = update_GBps.
+//   two arrays (push): it writes lines it has not read and pays the
+//     write-allocate, as copy does (both counted without it): ceiling = copy_GBps.
+//   roofline_MLUPS = ceiling_GBps / bytes_per_update, frac_roof = MLUPS / roofline_MLUPS
+// (Against copy_GBps an AA update looked faster than the hardware: copy moves
+// 24 bytes per element and is counted as 16, so its figure understates the
+// in-place bandwidth; one run printed frac_roof = 1.04.) frac_copy_roof is
+// MLUPS against copy_GBps, the earlier figure, for comparison.
 //
 // The machine is shared: run with --benchmark_repetitions=5
 // --benchmark_report_aggregates_only=true and quote the medians.
@@ -121,17 +127,19 @@ void BM_LbStep(benchmark::State& state) {
       2.0 * static_cast<double>(fluid.num_nodes()) * static_cast<double>(state.iterations());
   const double value = single ? sizeof(float) : sizeof(double);
   const double bytes_per_update = (2.0 * kQ + (coupled ? 6.0 : 0.0)) * value;
-  const double roofline_mlups = copy_gbps * 1e3 / bytes_per_update;
+  const double ceiling_gbps = two_array ? copy_gbps : update_gbps;
+  const double roofline_mlups = ceiling_gbps * 1e3 / bytes_per_update;
   state.counters["MLUPS"] = benchmark::Counter(updates / 1e6, benchmark::Counter::kIsRate);
   state.counters["copy_GBps"] = copy_gbps;
   state.counters["update_GBps"] = update_gbps;
+  state.counters["ceiling_GBps"] = ceiling_gbps;
   state.counters["bytes_per_update"] = bytes_per_update;
   state.counters["roofline_MLUPS"] = roofline_mlups;
   // MLUPS / roofline: a rate counter divided by the roofline.
   state.counters["frac_roof"] =
       benchmark::Counter(updates / 1e6 / roofline_mlups, benchmark::Counter::kIsRate);
-  state.counters["frac_update_roof"] =
-      benchmark::Counter(updates / 1e6 / (update_gbps * 1e3 / bytes_per_update), benchmark::Counter::kIsRate);
+  state.counters["frac_copy_roof"] =
+      benchmark::Counter(updates / 1e6 / (copy_gbps * 1e3 / bytes_per_update), benchmark::Counter::kIsRate);
   state.SetLabel(simd_name(best_simd()));
 }
 

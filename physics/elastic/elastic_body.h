@@ -66,10 +66,20 @@ struct ElasticEvaluation {
 ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
                                      int threads = 0);
 
+// SIMD level of the force and energy loops (elastic_forces.cc): one copy per
+// level is built and the best the CPU has is used (kAuto). Every level gives
+// the same bits; the others exist for tests and benchmarks.
+enum class TetSimd { kAuto, kGeneric, kAvx2, kAvx512 };
+TetSimd best_tet_simd();
+bool tet_simd_supported(TetSimd simd);
+const char* tet_simd_name(TetSimd simd);
+
 // The serial building block of add_elastic_forces: energy and forces of the
-// tets [begin_tet, end_tet) only, on the calling thread.
+// tets [begin_tet, end_tet) only, on the calling thread, at SIMD level `simd`
+// (one the CPU lacks, tet_simd_supported, runs the generic copy).
 ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
-                                              double* forces_n, std::int64_t begin_tet, std::int64_t end_tet);
+                                              double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
+                                              TetSimd simd = TetSimd::kAuto);
 
 // Energy only, same arithmetic as add_elastic_forces.
 ElasticEvaluation elastic_energy(const ElasticBody& body, const double* positions_m);

@@ -25,75 +25,151 @@ using detail::volumetric_pressures;
 // Energy (and, with kForces, the forces scattered into `forces`) of tets
 // [begin, end). The first inverted tet of the range goes to first_inverted.
 //
-// The per-tet stages of tet_kernel.h run in blocks of kBlock tets, one stage
-// at a time: the inverse cube root is a long dependency chain, and in a
-// tet-after-tet loop it stalls everything after it; over a block its
-// iterations are independent and overlap.
+// The tets run in blocks of kLanes: their vertex positions, B matrices and
+// material are gathered into a structure of arrays (lane = tet), the stages of
+// tet_kernel.h run in one lane loop that the compiler vectorises across tets
+// (the inverse cube root, a long dependency chain, overlaps over the lanes),
+// and the forces are scattered and the energy summed tet after tet in order.
+// The lane loop has no FMA contraction (-ffp-contract=off, CMakeLists.txt) and
+// the same operation order as one tet alone, so every SIMD level gives the
+// same bits as the scalar tangent path.
 // With tet_pressure (kNodalAverage) the tets carry no kappa term; their
 // stress gets tet_pressure[t] cof(F) instead, and the volumetric energy is
 // summed per vertex by volumetric_pressures.
+constexpr int kLanes = 16;
+
+struct TetBlock {
+  alignas(64) double y[12 * kLanes];       // y[kLanes (3 a + i) + lane] = y_i of local vertex a
+  alignas(64) double b[9 * kLanes];        // B_k at [kLanes k + lane]
+  alignas(64) double forces[12 * kLanes];  // as y
+  kernel::TetStressLanes<kLanes> stress;
+};
+
 template <bool kMooneyRivlin, bool kForces>
-double evaluate_range(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
-                      std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure) {
-  constexpr int kBlock = 16;
+inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBody& body, const double* y,
+                                                                 double* forces, std::int64_t begin,
+                                                                 std::int64_t end,
+                                                                 std::int64_t& first_inverted,
+                                                                 const double* tet_pressure) {
   const std::int32_t* tets = body.tets.data();
   const double* b_matrix = body.b_matrix.data();
   const double* volume = body.ref_volume_m3.data();
   const double* mu1 = body.mu1_pa.data();
   const double* mu2 = body.mu2_pa.data();
   const double* kappa = body.kappa_pa.data();
-  kernel::TetStress block[kBlock];
-  double j_m13[kBlock];
-  double block_forces[kBlock][12];
+  // mu2 (neo-Hookean: 0), kappa and the pressure as products with 1 or 0
+  // (exact) rather than selects, which would stop the lane loop vectorising.
+  const double mu2_scale = kMooneyRivlin ? 1.0 : 0.0;
+  const double kappa_scale = tet_pressure == nullptr ? 1.0 : 0.0;
+  const double pressure_scale = tet_pressure == nullptr ? 0.0 : 1.0;
+  const double* pressure = tet_pressure == nullptr ? kappa : tet_pressure;
+  TetBlock blk;
   double energy = 0.0;
-  for (std::int64_t first = begin; first < end; first += kBlock) {
-    const int size = static_cast<int>(std::min<std::int64_t>(kBlock, end - first));
-    for (int lane = 0; lane < size; ++lane) {
-      const std::int32_t* v = tets + 4 * (first + lane);
-      kernel::TetStress& s = block[lane];
-      s.det_f = kernel::deformation_gradient(
-          b_matrix + 9 * (first + lane), y + 3 * static_cast<std::int64_t>(v[0]),
-          y + 3 * static_cast<std::int64_t>(v[1]), y + 3 * static_cast<std::int64_t>(v[2]),
-          y + 3 * static_cast<std::int64_t>(v[3]), s.f, s.cof);
-    }
-    // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
-    for (int lane = 0; lane < size; ++lane) {
-      const double det_f = block[lane].det_f;
-      j_m13[lane] = kernel::inverse_cube_root(det_f <= 0.0 ? 1.0 : det_f);
-    }
+  for (std::int64_t first = begin; first < end; first += kLanes) {
+    const int size = static_cast<int>(std::min<std::int64_t>(kLanes, end - first));
+    // Gather the positions and B into lanes (the material is read in place).
     for (int lane = 0; lane < size; ++lane) {
       const std::int64_t t = first + lane;
-      kernel::TetStress& s = block[lane];
-      if (tet_pressure == nullptr) {
-        kernel::stress_from_gradient<kMooneyRivlin>(mu1[t], kMooneyRivlin ? mu2[t] : 0.0, kappa[t],
-                                                    j_m13[lane], s);
-      } else {
-        kernel::stress_from_gradient<kMooneyRivlin>(mu1[t], kMooneyRivlin ? mu2[t] : 0.0, 0.0, j_m13[lane], s,
-                                                    tet_pressure[t]);
+      const std::int32_t* v = tets + 4 * t;
+      for (int a = 0; a < 4; ++a) {
+        const double* ya = y + 3 * static_cast<std::int64_t>(v[a]);
+        for (int i = 0; i < 3; ++i) blk.y[kLanes * (3 * a + i) + lane] = ya[i];
       }
+      for (int k = 0; k < 9; ++k) blk.b[kLanes * k + lane] = b_matrix[9 * t + k];
+    }
+    const double* volume_b = volume + first;
+    const double* mu1_b = mu1 + first;
+    const double* mu2_b = mu2 + first;
+    const double* kappa_b = kappa + first;
+    const double* pressure_b = pressure + first;
+#pragma omp simd
+    for (int lane = 0; lane < size; ++lane) {
+      kernel::TetStressLanes<kLanes>& s = blk.stress;
+      const double* yl = blk.y + lane;
+      const double det_f = kernel::deformation_gradient<kLanes>(
+          blk.b + lane, yl, yl + 3 * kLanes, yl + 6 * kLanes, yl + 9 * kLanes, s.f + lane, s.cof + lane);
+      s.det_f[lane] = det_f;
+      // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
+      const double j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
+      kernel::stress_from_gradient<kMooneyRivlin>(mu1_b[lane], mu2_scale * mu2_b[lane],
+                                                  kappa_scale * kappa_b[lane], j_m13, s, lane,
+                                                  pressure_scale * pressure_b[lane]);
       if constexpr (kForces) {
-        kernel::forces_from_stress(b_matrix + 9 * t, volume[t], s.stress, block_forces[lane]);
+        kernel::forces_from_stress<kLanes>(blk.b + lane, volume_b[lane], s.stress + lane, blk.forces + lane);
       }
     }
     for (int lane = 0; lane < size; ++lane) {
       const std::int64_t t = first + lane;
-      if (block[lane].det_f <= 0.0) {
+      if (blk.stress.det_f[lane] <= 0.0) {
         first_inverted = std::min(first_inverted, t);
         continue;
       }
-      energy += volume[t] * block[lane].energy_density;
+      energy += volume[t] * blk.stress.energy_density[lane];
       if constexpr (kForces) {
         const std::int32_t* v = tets + 4 * t;
         for (int a = 0; a < 4; ++a) {
           double* out = forces + 3 * static_cast<std::int64_t>(v[a]);
-          out[0] += block_forces[lane][3 * a];
-          out[1] += block_forces[lane][3 * a + 1];
-          out[2] += block_forces[lane][3 * a + 2];
+          out[0] += blk.forces[kLanes * (3 * a) + lane];
+          out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
+          out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
         }
       }
     }
   }
   return energy;
+}
+
+// One copy of the tet loop per SIMD level, the best the CPU has chosen at run
+// time (resolve_tet_simd): the default build has no -march, so the generic
+// copy is SSE2 and runs on any x86-64.
+template <bool kMooneyRivlin, bool kForces>
+double evaluate_range_generic(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
+                              std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure) {
+  return evaluate_range_body<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
+                                                     tet_pressure);
+}
+#if defined(__x86_64__)
+template <bool kMooneyRivlin, bool kForces>
+__attribute__((target("avx2"))) double evaluate_range_avx2(const ElasticBody& body, const double* y,
+                                                           double* forces, std::int64_t begin,
+                                                           std::int64_t end, std::int64_t& first_inverted,
+                                                           const double* tet_pressure) {
+  return evaluate_range_body<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
+                                                     tet_pressure);
+}
+template <bool kMooneyRivlin, bool kForces>
+__attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) double evaluate_range_avx512(
+    const ElasticBody& body, const double* y, double* forces, std::int64_t begin, std::int64_t end,
+    std::int64_t& first_inverted, const double* tet_pressure) {
+  return evaluate_range_body<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
+                                                     tet_pressure);
+}
+#endif
+
+// kAuto is the best level; a level the CPU lacks runs the generic copy
+// rather than faulting on an illegal instruction.
+TetSimd resolve_tet_simd(TetSimd requested) {
+  if (requested == TetSimd::kAuto) return best_tet_simd();
+  return tet_simd_supported(requested) ? requested : TetSimd::kGeneric;
+}
+
+template <bool kMooneyRivlin, bool kForces>
+double evaluate_range(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
+                      std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure,
+                      TetSimd simd = TetSimd::kAuto) {
+  switch (resolve_tet_simd(simd)) {
+#if defined(__x86_64__)
+    case TetSimd::kAvx512:
+      return evaluate_range_avx512<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
+                                                           tet_pressure);
+    case TetSimd::kAvx2:
+      return evaluate_range_avx2<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
+                                                         tet_pressure);
+#endif
+    default:
+      return evaluate_range_generic<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
+                                                            tet_pressure);
+  }
 }
 
 // Deformed volume v = det[y1 - y4, y2 - y4, y3 - y4] / 6 of a tetrahedron.
@@ -219,8 +295,8 @@ ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* posi
 }
 
 ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
-                                              double* forces_n, std::int64_t begin_tet,
-                                              std::int64_t end_tet) {
+                                              double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
+                                              TetSimd simd) {
   std::int64_t first_inverted = kNoTet;
   ElasticEvaluation result;
   // kNodalAverage: the pressures need every tet; the energy is then the
@@ -232,10 +308,10 @@ ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const dou
   const double* tet_pressure = pressure.empty() ? nullptr : pressure.data();
   if (body.neo_hookean) {
     result.energy_j += evaluate_range<false, true>(body, positions_m, forces_n, begin_tet, end_tet,
-                                                   first_inverted, tet_pressure);
+                                                   first_inverted, tet_pressure, simd);
   } else {
     result.energy_j += evaluate_range<true, true>(body, positions_m, forces_n, begin_tet, end_tet,
-                                                  first_inverted, tet_pressure);
+                                                  first_inverted, tet_pressure, simd);
   }
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;
@@ -248,6 +324,50 @@ ElasticEvaluation elastic_energy(const ElasticBody& body, const double* position
 
 ElasticEvaluation elastic_energy(const ElasticBody& body, const double* positions_m) {
   return elastic_energy(body, positions_m, 0);
+}
+
+TetSimd best_tet_simd() {
+#if defined(__x86_64__)
+  static const TetSimd best = [] {
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+        __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw")) {
+      return TetSimd::kAvx512;
+    }
+    if (__builtin_cpu_supports("avx2")) return TetSimd::kAvx2;
+    return TetSimd::kGeneric;
+  }();
+  return best;
+#else
+  return TetSimd::kGeneric;
+#endif
+}
+
+bool tet_simd_supported(TetSimd simd) {
+  switch (simd) {
+    case TetSimd::kAuto:
+    case TetSimd::kGeneric:
+      return true;
+    case TetSimd::kAvx2:
+      return best_tet_simd() == TetSimd::kAvx2 || best_tet_simd() == TetSimd::kAvx512;
+    case TetSimd::kAvx512:
+      return best_tet_simd() == TetSimd::kAvx512;
+  }
+  return false;
+}
+
+const char* tet_simd_name(TetSimd simd) {
+  switch (simd) {
+    case TetSimd::kAuto:
+      return "auto";
+    case TetSimd::kGeneric:
+      return "generic";
+    case TetSimd::kAvx2:
+      return "avx2";
+    case TetSimd::kAvx512:
+      return "avx512";
+  }
+  return "?";
 }
 
 VolumeRatioMinimum min_volume_ratio(const ElasticBody& body, const double* positions_m) {

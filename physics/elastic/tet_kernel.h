@@ -14,22 +14,36 @@
 #pragma once
 
 #include <bit>
+#include <cstddef>
 #include <cstdint>
 
 namespace cellflow::elastic::kernel {
 
 // x^-1/3 for a normal, finite x > 0, to within 1 ulp (max 0.87 ulp measured
 // over 1e7 samples in [1e-13, 1e13]), branch-free and without division: the
-// exponent divided by -3 on the bit pattern (within 3.5 %), then two steps of
-// the series (1 + d)^-1/3 = 1 - d/3 + 2/9 d^2 - 14/81 d^3 + 35/243 d^4 with
+// exponent divided by -3 on the high 32 bits of the bit pattern (within 3.5 %;
+// 32-bit so that the lane loops of elastic_forces.cc vectorise it, a 64-bit
+// division by 3 has no SIMD form), then two steps of the series
+// (1 + d)^-1/3 = 1 - d/3 + 2/9 d^2 - 14/81 d^3 + 35/243 d^4 with
 // d = x y^3 - 1 (errors 1.4e-6, then 1e-17). Replaces std::cbrt and the
 // division by J, which took half of the force kernel's time.
-inline double inverse_cube_root(double x) {
-  double y = std::bit_cast<double>(std::uint64_t{0x553ef0a000000000} - std::bit_cast<std::uint64_t>(x) / 3);
+inline __attribute__((always_inline)) double inverse_cube_root(double x) {
+  const std::uint32_t high = static_cast<std::uint32_t>(std::bit_cast<std::uint64_t>(x) >> 32);
+  double y = std::bit_cast<double>(static_cast<std::uint64_t>(0x553ef0a0u - high / 3u) << 32);
   double d = x * y * y * y - 1.0;
   y *= 1.0 + d * (-1.0 / 3.0 + d * (2.0 / 9.0 + d * (-14.0 / 81.0 + d * (35.0 / 243.0))));
   d = x * y * y * y - 1.0;
   return y - y * d * (1.0 / 3.0 - d * (2.0 / 9.0));
+}
+
+// x for x > 0, and (to round-off) 1 for x <= 0; NaN stays NaN: the argument
+// of inverse_cube_root for a lane that may hold an inverted tet, whose result
+// is discarded. Arithmetic rather than a select: GCC turns the select into a
+// branch, and the bit-mask blend has no SSE2 form, either of which stops the
+// lane loop of elastic_forces.cc from vectorising. For x > 0 the added term
+// is a signed zero, so x comes back exactly.
+inline __attribute__((always_inline)) double one_if_not_positive(double x) {
+  return x + static_cast<double>(x <= 0.0) * (1.0 - x);
 }
 
 // Per-tet material and geometry, read from an ElasticBody.
@@ -43,71 +57,91 @@ struct TetParams {
   double pressure_pa = 0.0;
 };
 
-// Everything the forces and the tangent need at one deformation gradient.
-struct TetStress {
-  double f[9];         // deformation gradient F
-  double cof[9];       // cofactor J F^-T = dJ/dF
-  double fc[9];        // F C with C = F^T F (Mooney-Rivlin only)
-  double c[9];         // C = F^T F (Mooney-Rivlin only)
-  double stress[9];    // nominal stress P = dU/dF
-  double det_f;        // J = det F
-  double inv_det;      // 1 / J
-  double j_m23;        // J^-2/3
-  double j_m43;        // J^-4/3
-  double trace_c;      // tr C
-  double k_numerator;  // ((tr C)^2 - tr C^2) / 2
-  double energy_density;
+// Everything the forces and the tangent need at one deformation gradient, for
+// kLanes tets side by side (structure of arrays: component k of lane l at
+// [kLanes * k + l]). The tangent uses one lane (TetStress); the force loop
+// (elastic_forces.cc) a block of lanes, so that its lane loop over the stages
+// below vectorises across tets.
+template <int kLanes>
+struct TetStressLanes {
+  // Cache-line rows for a lane block; one tet keeps the plain double layout.
+  static constexpr std::size_t kAlign = kLanes > 1 ? 64 : alignof(double);
+  alignas(kAlign) double f[9 * kLanes];        // deformation gradient F
+  alignas(kAlign) double cof[9 * kLanes];      // cofactor J F^-T = dJ/dF
+  alignas(kAlign) double fc[9 * kLanes];       // F C with C = F^T F (Mooney-Rivlin only)
+  alignas(kAlign) double c[9 * kLanes];        // C = F^T F (Mooney-Rivlin only)
+  alignas(kAlign) double stress[9 * kLanes];   // nominal stress P = dU/dF
+  alignas(kAlign) double det_f[kLanes];        // J = det F
+  alignas(kAlign) double inv_det[kLanes];      // 1 / J
+  alignas(kAlign) double j_m23[kLanes];        // J^-2/3
+  alignas(kAlign) double j_m43[kLanes];        // J^-4/3
+  alignas(kAlign) double trace_c[kLanes];      // tr C
+  alignas(kAlign) double k_numerator[kLanes];  // ((tr C)^2 - tr C^2) / 2
+  alignas(kAlign) double energy_density[kLanes];
 };
+using TetStress = TetStressLanes<1>;
 
 // Stage 1: F = D B and its cofactor; returns J = det F (paper eq. 2-3, 11-12).
-inline double deformation_gradient(const double* b, const double* y0, const double* y1, const double* y2,
-                                   const double* y3, double* f, double* cof) {
+// Every array is read with stride S (S = kLanes of a lane block, 1 for one tet):
+// b[S k] = B_k, y0[S i] = y_i^1, f[S k] = F_k.
+template <int S = 1>
+inline __attribute__((always_inline)) double deformation_gradient(const double* b, const double* y0,
+                                                                  const double* y1, const double* y2,
+                                                                  const double* y3, double* f, double* cof) {
   // D_ik = y_i^k - y_i^4   (paper eq. 11, positions instead of displacements since J B = 1)
   double d[9];
   for (int i = 0; i < 3; ++i) {
-    d[3 * i + 0] = y0[i] - y3[i];
-    d[3 * i + 1] = y1[i] - y3[i];
-    d[3 * i + 2] = y2[i] - y3[i];
+    d[3 * i + 0] = y0[S * i] - y3[S * i];
+    d[3 * i + 1] = y1[S * i] - y3[S * i];
+    d[3 * i + 2] = y2[S * i] - y3[S * i];
   }
+  double fl[9];
   // F_il = D_ik B_kl   (paper eq. 2 and 11-12)
   for (int i = 0; i < 3; ++i) {
     for (int l = 0; l < 3; ++l) {
-      f[3 * i + l] = d[3 * i + 0] * b[l] + d[3 * i + 1] * b[3 + l] + d[3 * i + 2] * b[6 + l];
+      fl[3 * i + l] = d[3 * i + 0] * b[S * l] + d[3 * i + 1] * b[S * (3 + l)] + d[3 * i + 2] * b[S * (6 + l)];
     }
   }
   // cof(F) = dJ/dF = J F^-T   (derivative table, paper section 3.2)
-  cof[0] = f[4] * f[8] - f[5] * f[7];
-  cof[1] = f[5] * f[6] - f[3] * f[8];
-  cof[2] = f[3] * f[7] - f[4] * f[6];
-  cof[3] = f[2] * f[7] - f[1] * f[8];
-  cof[4] = f[0] * f[8] - f[2] * f[6];
-  cof[5] = f[1] * f[6] - f[0] * f[7];
-  cof[6] = f[1] * f[5] - f[2] * f[4];
-  cof[7] = f[2] * f[3] - f[0] * f[5];
-  cof[8] = f[0] * f[4] - f[1] * f[3];
+  double cl[9];
+  cl[0] = fl[4] * fl[8] - fl[5] * fl[7];
+  cl[1] = fl[5] * fl[6] - fl[3] * fl[8];
+  cl[2] = fl[3] * fl[7] - fl[4] * fl[6];
+  cl[3] = fl[2] * fl[7] - fl[1] * fl[8];
+  cl[4] = fl[0] * fl[8] - fl[2] * fl[6];
+  cl[5] = fl[1] * fl[6] - fl[0] * fl[7];
+  cl[6] = fl[1] * fl[5] - fl[2] * fl[4];
+  cl[7] = fl[2] * fl[3] - fl[0] * fl[5];
+  cl[8] = fl[0] * fl[4] - fl[1] * fl[3];
+  for (int k = 0; k < 9; ++k) {
+    f[S * k] = fl[k];
+    cof[S * k] = cl[k];
+  }
   // J = det F   (paper eq. 3), signed: an inverted element is reported, never hidden
-  return f[0] * cof[0] + f[1] * cof[1] + f[2] * cof[2];
+  return fl[0] * cl[0] + fl[1] * cl[1] + fl[2] * cl[2];
 }
 
-// Stage 3: invariants, energy density and nominal stress from s.f, s.cof,
-// s.det_f (> 0) and J^-1/3 (stage 2: inverse_cube_root). `pressure` adds
-// pressure cof(F) to the stress and nothing to the energy density (the
-// nodal-averaged volumetric energy is summed per vertex, elastic_forces.cc).
-template <bool kMooneyRivlin>
-inline void stress_from_gradient(double mu1, double mu2, double kappa, double j_m13, TetStress& s,
-                                 double pressure = 0.0) {
-  const double* f = s.f;
-  const double* cof = s.cof;
-  const double det_f = s.det_f;
+// Stage 3: invariants, energy density and nominal stress of lane `lane` of s
+// from s.f, s.cof, s.det_f (> 0) and J^-1/3 (stage 2: inverse_cube_root).
+// `pressure` adds pressure cof(F) to the stress and nothing to the energy
+// density (the nodal-averaged volumetric energy is summed per vertex,
+// elastic_forces.cc).
+template <bool kMooneyRivlin, int S>
+inline __attribute__((always_inline)) void stress_from_gradient(double mu1, double mu2, double kappa,
+                                                                double j_m13, TetStressLanes<S>& s, int lane,
+                                                                double pressure = 0.0) {
+  const double* f = s.f + lane;
+  const double* cof = s.cof + lane;
+  const double det_f = s.det_f[lane];
   // J^-2/3 and 1/J as products of J^-1/3: no pow(), no division
   const double j_m23 = j_m13 * j_m13;
   const double inv_det = j_m23 * j_m13;
-  s.inv_det = inv_det;
-  s.j_m23 = j_m23;
+  s.inv_det[lane] = inv_det;
+  s.j_m23[lane] = j_m23;
   // T_C = tr C = F_il F_il   (paper eq. 3-4)
   double trace_c = 0.0;
-  for (int k = 0; k < 9; ++k) trace_c += f[k] * f[k];
-  s.trace_c = trace_c;
+  for (int k = 0; k < 9; ++k) trace_c += f[S * k] * f[S * k];
+  s.trace_c[lane] = trace_c;
   const double jm1 = det_f - 1.0;
   // I = T_C J^-2/3   (paper eq. 3)
   const double inv_i = trace_c * j_m23;
@@ -118,41 +152,45 @@ inline void stress_from_gradient(double mu1, double mu2, double kappa, double j_
   // c_cof = -mu1/3 T_C J^-5/3 - 2/3 mu2 K' J^-7/3 + kappa (J - 1), K' = (T_C^2 - T_C2) / 2
   double coef_f = mu1 * j_m23;
   double coef_cof = -(1.0 / 3.0) * mu1 * inv_i * inv_det + kappa * jm1 + pressure;
-  double* stress = s.stress;
+  double* stress = s.stress + lane;
   if constexpr (kMooneyRivlin) {
     const double j_m43 = j_m23 * j_m23;
-    s.j_m43 = j_m43;
+    s.j_m43[lane] = j_m43;
     // C = F^T F (symmetric: six products)
-    double* c = s.c;
-    c[0] = f[0] * f[0] + f[3] * f[3] + f[6] * f[6];
-    c[4] = f[1] * f[1] + f[4] * f[4] + f[7] * f[7];
-    c[8] = f[2] * f[2] + f[5] * f[5] + f[8] * f[8];
-    c[1] = c[3] = f[0] * f[1] + f[3] * f[4] + f[6] * f[7];
-    c[2] = c[6] = f[0] * f[2] + f[3] * f[5] + f[6] * f[8];
-    c[5] = c[7] = f[1] * f[2] + f[4] * f[5] + f[7] * f[8];
+    double c[9];
+    c[0] = f[0] * f[0] + f[S * 3] * f[S * 3] + f[S * 6] * f[S * 6];
+    c[4] = f[S * 1] * f[S * 1] + f[S * 4] * f[S * 4] + f[S * 7] * f[S * 7];
+    c[8] = f[S * 2] * f[S * 2] + f[S * 5] * f[S * 5] + f[S * 8] * f[S * 8];
+    c[1] = c[3] = f[0] * f[S * 1] + f[S * 3] * f[S * 4] + f[S * 6] * f[S * 7];
+    c[2] = c[6] = f[0] * f[S * 2] + f[S * 3] * f[S * 5] + f[S * 6] * f[S * 8];
+    c[5] = c[7] = f[S * 1] * f[S * 2] + f[S * 4] * f[S * 5] + f[S * 7] * f[S * 8];
+    for (int k = 0; k < 9; ++k) s.c[S * k + lane] = c[k];
     // T_C2 = tr C^2 = C_lm C_lm   (paper eq. 3-4)
     const double trace_c2 =
         c[0] * c[0] + c[4] * c[4] + c[8] * c[8] + 2.0 * (c[1] * c[1] + c[2] * c[2] + c[5] * c[5]);
     // K = 1/2 (T_C^2 - T_C2) J^-4/3   (paper eq. 3)
     const double k_numerator = 0.5 * (trace_c * trace_c - trace_c2);
-    s.k_numerator = k_numerator;
+    s.k_numerator[lane] = k_numerator;
     const double inv_k = k_numerator * j_m43;
     energy += 0.5 * mu2 * (inv_k - 3.0);
     coef_f += mu2 * trace_c * j_m43;
     coef_cof -= (2.0 / 3.0) * mu2 * inv_k * inv_det;
     const double coef_fc = -mu2 * j_m43;
     // (F C)_il = F_im C_ml
-    double* fc = s.fc;
+    double* fc = s.fc + lane;
     for (int i = 0; i < 3; ++i) {
       for (int l = 0; l < 3; ++l) {
-        fc[3 * i + l] = f[3 * i] * c[l] + f[3 * i + 1] * c[3 + l] + f[3 * i + 2] * c[6 + l];
+        const double fc_il =
+            f[S * 3 * i] * c[l] + f[S * (3 * i + 1)] * c[3 + l] + f[S * (3 * i + 2)] * c[6 + l];
+        fc[S * (3 * i + l)] = fc_il;
+        stress[S * (3 * i + l)] =
+            coef_f * f[S * (3 * i + l)] + coef_fc * fc_il + coef_cof * cof[S * (3 * i + l)];
       }
     }
-    for (int k = 0; k < 9; ++k) stress[k] = coef_f * f[k] + coef_fc * fc[k] + coef_cof * cof[k];
   } else {
-    for (int k = 0; k < 9; ++k) stress[k] = coef_f * f[k] + coef_cof * cof[k];
+    for (int k = 0; k < 9; ++k) stress[S * k] = coef_f * f[S * k] + coef_cof * cof[S * k];
   }
-  s.energy_density = energy;
+  s.energy_density[lane] = energy;
 }
 
 // All stages for one tet. Returns false for J <= 0 (inverted or flat element):
@@ -162,29 +200,32 @@ inline void stress_from_gradient(double mu1, double mu2, double kappa, double j_
 template <bool kMooneyRivlin>
 inline bool tet_stress(const TetParams& p, const double* y0, const double* y1, const double* y2,
                        const double* y3, TetStress& s) {
-  s.det_f = deformation_gradient(p.b_matrix, y0, y1, y2, y3, s.f, s.cof);
-  if (s.det_f <= 0.0) return false;
-  stress_from_gradient<kMooneyRivlin>(p.mu1_pa, p.mu2_pa, p.kappa_pa, inverse_cube_root(s.det_f), s,
+  s.det_f[0] = deformation_gradient(p.b_matrix, y0, y1, y2, y3, s.f, s.cof);
+  if (s.det_f[0] <= 0.0) return false;
+  stress_from_gradient<kMooneyRivlin>(p.mu1_pa, p.mu2_pa, p.kappa_pa, inverse_cube_root(s.det_f[0]), s, 0,
                                       p.pressure_pa);
   return true;
 }
 
 // f_i^a = -V0 dU/dF_kl dF_kl/du_i^a = -V0 P_il B_al for a = 1..3, and
 // f^4 = -(f^1 + f^2 + f^3) since dF_kl/du_i^4 = -delta_ki sum_m B_ml   (paper eq. 9-10, section 3.2)
-// Writes forces[3 a + i] for the local vertices a = 0..3.
-inline void forces_from_stress(const double* b, double ref_volume_m3, const double* stress, double* forces) {
+// Writes forces[S (3 a + i)] for the local vertices a = 0..3; b and stress
+// are read with stride S as in deformation_gradient.
+template <int S = 1>
+inline __attribute__((always_inline)) void forces_from_stress(const double* b, double ref_volume_m3,
+                                                              const double* stress, double* forces) {
   const double scale = -ref_volume_m3;
   for (int i = 0; i < 3; ++i) {
-    const double p0 = scale * stress[3 * i];
-    const double p1 = scale * stress[3 * i + 1];
-    const double p2 = scale * stress[3 * i + 2];
-    const double fa0 = p0 * b[0] + p1 * b[1] + p2 * b[2];
-    const double fa1 = p0 * b[3] + p1 * b[4] + p2 * b[5];
-    const double fa2 = p0 * b[6] + p1 * b[7] + p2 * b[8];
-    forces[i] = fa0;
-    forces[3 + i] = fa1;
-    forces[6 + i] = fa2;
-    forces[9 + i] = -(fa0 + fa1 + fa2);
+    const double p0 = scale * stress[S * 3 * i];
+    const double p1 = scale * stress[S * (3 * i + 1)];
+    const double p2 = scale * stress[S * (3 * i + 2)];
+    const double fa0 = p0 * b[0] + p1 * b[S * 1] + p2 * b[S * 2];
+    const double fa1 = p0 * b[S * 3] + p1 * b[S * 4] + p2 * b[S * 5];
+    const double fa2 = p0 * b[S * 6] + p1 * b[S * 7] + p2 * b[S * 8];
+    forces[S * i] = fa0;
+    forces[S * (3 + i)] = fa1;
+    forces[S * (6 + i)] = fa2;
+    forces[S * (9 + i)] = -(fa0 + fa1 + fa2);
   }
 }
 
@@ -203,28 +244,28 @@ inline void stress_derivative(const TetParams& p, const TetStress& s, double* d2
   const double mu2 = kMooneyRivlin ? p.mu2_pa : 0.0;
   const double* f = s.f;
   const double* cof = s.cof;
-  const double inv_det = s.inv_det;
-  const double j_m23 = s.j_m23;
-  const double jm1 = s.det_f - 1.0;
+  const double inv_det = s.inv_det[0];
+  const double j_m23 = s.j_m23[0];
+  const double jm1 = s.det_f[0] - 1.0;
   double coef_f = mu1 * j_m23;
-  double coef_cof = -(1.0 / 3.0) * mu1 * s.trace_c * j_m23 * inv_det + p.kappa_pa * jm1 + p.pressure_pa;
+  double coef_cof = -(1.0 / 3.0) * mu1 * s.trace_c[0] * j_m23 * inv_det + p.kappa_pa * jm1 + p.pressure_pa;
   double alpha = -(2.0 / 3.0) * mu1 * j_m23 * inv_det;
-  double beta = (5.0 / 9.0) * mu1 * s.trace_c * j_m23 * inv_det * inv_det + p.kappa_pa;
+  double beta = (5.0 / 9.0) * mu1 * s.trace_c[0] * j_m23 * inv_det * inv_det + p.kappa_pa;
   for (int r = 0; r < 9; ++r) {
     for (int q = 0; q < 9; ++q) {
       d2u[9 * r + q] = alpha * (f[r] * cof[q] + cof[r] * f[q]) + beta * cof[r] * cof[q];
     }
   }
   if constexpr (kMooneyRivlin) {
-    const double j_m43 = s.j_m43;
+    const double j_m43 = s.j_m43[0];
     const double* fc = s.fc;
     const double* c = s.c;
-    coef_f += mu2 * s.trace_c * j_m43;
-    coef_cof -= (2.0 / 3.0) * mu2 * s.k_numerator * j_m43 * inv_det;
+    coef_f += mu2 * s.trace_c[0] * j_m43;
+    coef_cof -= (2.0 / 3.0) * mu2 * s.k_numerator[0] * j_m43 * inv_det;
     const double coef_fc = -mu2 * j_m43;
     const double gamma = (4.0 / 3.0) * mu2 * j_m43 * inv_det;
-    const double alpha_k = -(4.0 / 3.0) * mu2 * s.trace_c * j_m43 * inv_det;
-    const double beta_k = (14.0 / 9.0) * mu2 * s.k_numerator * j_m43 * inv_det * inv_det;
+    const double alpha_k = -(4.0 / 3.0) * mu2 * s.trace_c[0] * j_m43 * inv_det;
+    const double beta_k = (14.0 / 9.0) * mu2 * s.k_numerator[0] * j_m43 * inv_det * inv_det;
     const double ff = 2.0 * mu2 * j_m43;
     for (int r = 0; r < 9; ++r) {
       for (int q = 0; q < 9; ++q) {
@@ -287,7 +328,7 @@ inline __attribute__((always_inline)) bool tet_tangent(const TetParams& p, const
   TetStress s;
   if (!tet_stress<kMooneyRivlin>(p, y0, y1, y2, y3, s)) return false;
   forces_from_stress(p.b_matrix, p.ref_volume_m3, s.stress, forces);
-  energy_j = p.ref_volume_m3 * s.energy_density;
+  energy_j = p.ref_volume_m3 * s.energy_density[0];
   double d2u[81];
   stress_derivative<kMooneyRivlin>(p, s, d2u);
   const double* b = p.b_matrix;

@@ -419,11 +419,20 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
 
 StatusOr<v1::SubmitJobResponse> JobService::submit_study(const v1::SubmitJobRequest& request,
                                                          const Identity& caller) {
-  const v1::JobSpec& spec = request.spec();
+  v1::JobSpec spec = request.spec();
   if (spec.name().size() > options_.max_name_bytes) {
     return invalid_argument("name: " + std::to_string(spec.name().size()) + " bytes; at most " +
                             std::to_string(options_.max_name_bytes));
   }
+  if (spec.author().size() > options_.max_name_bytes) {
+    return invalid_argument("author: " + std::to_string(spec.author().size()) + " bytes; at most " +
+                            std::to_string(options_.max_name_bytes));
+  }
+  // Every child's result names an author: the base's, else the study's (the
+  // client's), else the submitting user.
+  if (spec.author().empty()) spec.set_author(caller.user);
+  const std::string author =
+      spec.study().base().author().empty() ? spec.author() : spec.study().base().author();
   // A repeated request returns its study before anything is expanded.
   if (!request.request_id().empty()) {
     auto existing = store_.submit_study(spec, {}, request.request_id(), now(), caller.user);
@@ -451,6 +460,7 @@ StatusOr<v1::SubmitJobResponse> JobService::submit_study(const v1::SubmitJobRequ
     where += " (" + point.label + ")";
     point.spec.set_name(sanitize_text((base_name.empty() ? "" : base_name + " ") + "[" + point.label + "]",
                                       options_.max_name_bytes));
+    point.spec.set_author(author);
     auto prepared = prepare_submitted(point.spec);
     if (!prepared.ok()) return Status(prepared.status().code(), where + ": " + prepared.status().message());
     const std::int64_t memory = (*prepared)->memory_bytes();

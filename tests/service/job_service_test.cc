@@ -758,6 +758,28 @@ TEST_F(JobServiceTest, StudySubmitValidatesEveryChildBeforeQueuingAny) {
   EXPECT_EQ(listed->jobs_size(), 0) << "nothing of a refused study is queued";
 }
 
+// The children's result files name an author: the base spec's, else the
+// study's, else the submitting user.
+TEST_F(JobServiceTest, StudyChildrenCarryTheAuthor) {
+  const Identity alice{"alice", false, false};
+  auto by_user = service_->submit(study_request({"0.1"}), alice);
+  ASSERT_TRUE(by_user.ok()) << by_user.status().to_string();
+  EXPECT_EQ(by_user->job().spec().author(), "alice");
+  v1::SubmitJobRequest named = study_request({"0.1"});
+  named.mutable_spec()->set_author("Alice Example");
+  ASSERT_TRUE(service_->submit(named, alice).ok());
+  v1::SubmitJobRequest base_named = study_request({"0.1"});
+  base_named.mutable_spec()->mutable_study()->mutable_base()->set_author("Base Author");
+  ASSERT_TRUE(service_->submit(base_named, alice).ok());
+  std::vector<std::string> authors;
+  for (int i = 0; i < 3; ++i) {
+    const v1::LeaseJobResponse leased = lease();
+    ASSERT_TRUE(leased.found());
+    authors.push_back(leased.spec().author());
+  }
+  EXPECT_EQ(authors, (std::vector<std::string>{"alice", "Alice Example", "Base Author"}));
+}
+
 TEST_F(JobServiceTest, StudyRunsItsChildrenAndWatchStreamsTheirProgress) {
   auto submitted = service_->submit(study_request({"0.1", "0.2"}, "sweep-1"));
   ASSERT_TRUE(submitted.ok()) << submitted.status().to_string();

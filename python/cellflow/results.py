@@ -40,6 +40,14 @@ SCHEMA_DIR = pathlib.Path(__file__).resolve().parent / "schemas"
 DEFAULT_MAX_DATASET_BYTES = 4 << 30
 
 
+def _scene_json_names():
+    """The JSON names of the JobSpec scene oneof ("compression", "shearFlow", ...):
+    the spec's other fields (name, author) are not scenes."""
+    from cellflow._proto import spec_pb2
+
+    return {f.json_name for f in spec_pb2.JobSpec.DESCRIPTOR.oneofs_by_name["scene"].fields}
+
+
 def load_schemas(folder: Optional[os.PathLike] = None) -> Dict[str, dict]:
     """The result schemas by scene name ("compression", "shear_flow", "fit", ...)."""
     schemas = {}
@@ -102,7 +110,7 @@ class Result:
             if "h5md" not in f:
                 raise ResultFileError(f"{self.path}: not an H5MD file (no /h5md group)")
             self.spec = json.loads(_text(self._read(f, LAYOUT["job_spec"]))) if LAYOUT["job_spec"] in f else {}
-            self.scene = next((k for k in self.spec if k != "name"), "")
+            self.scene = next((k for k in self.spec if k in _scene_json_names()), "")
             self.schema = (schemas or load_schemas()).get(_snake(self.scene), {})
             self.observables = self._read_observables(f)
             self.setup = self._read_scalars(f, LAYOUT["setup"])

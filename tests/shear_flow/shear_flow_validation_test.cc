@@ -81,7 +81,7 @@ void check_small_capillary_number(double ca) {
   EXPECT_GE(ratio, kMinRatioD) << "D = " << r.steady_taylor_deformation << ", (5/4) Ca = " << d_ref;
   EXPECT_LE(ratio, kMaxRatioD) << "D = " << r.steady_taylor_deformation << ", (5/4) Ca = " << d_ref;
   EXPECT_NEAR(r.steady_inclination_deg, theta_ref, kMaxInclinationErrorDeg);
-  // The window mean is steady: D changed by less than 2 % over the last strain unit.
+  // The window mean is steady: the means of the last two 1-strain windows differ by less than 2 %.
   EXPECT_LT(r.steady_relative_change, 0.02);
   std::printf(
       "Ca %.3g (%g cells/R, %d vertices): D %.5f = %.3f x (5/4) Ca, inclination %.2f deg (ref %.2f), "

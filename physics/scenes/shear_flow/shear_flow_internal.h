@@ -96,10 +96,10 @@ void to_si(Run& run);
 // Observables at the current positions; appends the sample.
 ShearFlowSample take_sample(Run& run, ShearFlowResult& result, std::int64_t step);
 
-// Means over the last window of samples; the relative change of D there.
+// Means over the last window of samples; the drift of D (steady_window_drift).
 void summarise(const Run& run, ShearFlowResult& result);
 
-// True when D over the last full window changed by less than the tolerance.
+// shear_flow_is_steady on the run's samples.
 bool is_steady(const ShearFlowResult& result, const ShearFlowNumerics& n);
 
 }  // namespace cellflow::scenes::shear_flow_detail

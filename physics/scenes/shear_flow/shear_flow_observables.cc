@@ -77,21 +77,18 @@ void summarise(const Run& run, ShearFlowResult& result) {
   const int last = static_cast<int>(result.samples.size()) - 1;
   const int first = std::max(0, last - window);
   double d_sum = 0.0, incl_sum = 0.0, strain_sum = 0.0;
-  double d_min = std::numeric_limits<double>::max(), d_max = -d_min;
   for (int i = first; i <= last; ++i) {
     const ShearFlowSample& s = result.samples[i];
     d_sum += s.taylor_deformation;
     incl_sum += s.inclination_deg;
     strain_sum += s.net_strain;
-    d_min = std::min(d_min, s.taylor_deformation);
-    d_max = std::max(d_max, s.taylor_deformation);
   }
   const double count = static_cast<double>(last - first + 1);
   result.steady_taylor_deformation = d_sum / count;
   result.steady_inclination_deg = incl_sum / count;
   result.steady_net_strain = strain_sum / count;
-  result.steady_relative_change =
-      result.steady_taylor_deformation > 0.0 ? (d_max - d_min) / result.steady_taylor_deformation : 0.0;
+  const double drift = steady_window_drift(result.samples, n);
+  result.steady_relative_change = std::isfinite(drift) ? drift : 0.0;
   result.tank_treading_frequency_per_s = result.samples[last].tank_treading_frequency_per_s;
 
   // Thickness 2 a1 against the kernel width kernel_width dx.
@@ -109,29 +106,39 @@ void summarise(const Run& run, ShearFlowResult& result) {
   }
 }
 
-// True when D over the last full window changed by less than the tolerance.
 bool is_steady(const ShearFlowResult& result, const ShearFlowNumerics& n) {
-  if (!(n.steady_tolerance > 0.0)) return false;
-  const int window =
-      std::max(1, static_cast<int>(std::lround(n.steady_window_strain / n.sample_every_strain)));
-  const int last = static_cast<int>(result.samples.size()) - 1;
-  if (last < window) return false;
-  double d_sum = 0.0;
-  double d_min = std::numeric_limits<double>::max(), d_max = -d_min;
-  for (int i = last - window; i <= last; ++i) {
-    const double d = result.samples[i].taylor_deformation;
-    d_sum += d;
-    d_min = std::min(d_min, d);
-    d_max = std::max(d_max, d);
-  }
-  const double mean = d_sum / (window + 1);
-  // (max D - min D) / mean D < tolerance over the window
-  return mean > 0.0 && (d_max - d_min) < n.steady_tolerance * mean;
+  return shear_flow_is_steady(result.samples, n);
 }
 
 }  // namespace shear_flow_detail
 
 using namespace shear_flow_detail;
+
+int steady_window_samples(const ShearFlowNumerics& n) {
+  return std::max(1, static_cast<int>(std::lround(n.steady_window_strain / n.sample_every_strain)));
+}
+
+double steady_window_drift(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n) {
+  const int window = steady_window_samples(n);
+  const int count = static_cast<int>(samples.size());
+  // Two full windows after the undeformed first sample (index 0).
+  if (count - 1 < 2 * window) return std::numeric_limits<double>::quiet_NaN();
+  double previous = 0.0, last = 0.0;
+  for (int i = count - 2 * window; i < count - window; ++i) previous += samples[i].taylor_deformation;
+  for (int i = count - window; i < count; ++i) last += samples[i].taylor_deformation;
+  previous /= window;
+  last /= window;
+  if (!(last > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  // Noise and tank-treading wobble average out within a window; what is left
+  // between two consecutive windows is the drift of D towards its steady value.
+  return std::fabs(last - previous) / last;
+}
+
+bool shear_flow_is_steady(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n) {
+  if (!(n.steady_tolerance > 0.0)) return false;
+  const double drift = steady_window_drift(samples, n);
+  return std::isfinite(drift) && drift < n.steady_tolerance;
+}
 
 double small_ca_taylor_deformation(double capillary_number) {
   // D = (5/4) Ca   (Roscoe 1967, small-Ca limit; shared/validation/README.md)

@@ -59,6 +59,37 @@ TEST(ShearFlowSteadyRule, SlowDriftDoesNotStop) {
             0.0);
 }
 
+TEST(ShearFlowSteadyRule, OvershootDoesNotStopWhileDFalls) {
+  // The shape of examples/shear_flow.json: D rises (tau 0.5), overshoots by
+  // 2.5 % at strain 2 and falls back with tau ~1 strain unit. Two window
+  // means around the peak agree; the slope over the last window does not.
+  const ShearFlowNumerics n = default_rule();
+  const double d_inf = 0.23;
+  auto d = [&](double t) {
+    return d_inf * (1.0 - std::exp(-t / 0.5) + 0.025 * (t / 2.0) * (t / 2.0) * std::exp(2.0 - t));
+  };
+  const double stop = stop_strain(d, n, 40.0);
+  ASSERT_GT(stop, 0.0);
+  double window_mean = 0.0;
+  const int w = steady_window_samples(n);
+  for (int i = 0; i < w; ++i) window_mean += d(stop - i * n.sample_every_strain) / w;
+  EXPECT_LE(std::fabs(window_mean / d_inf - 1.0), 0.005) << "stop " << stop;
+  // Without the slope test the two window means around the peak agree early.
+  double means_only = -1.0;
+  {
+    std::vector<ShearFlowSample> samples;
+    for (int i = 0; i <= 400 && means_only < 0.0; ++i) {
+      ShearFlowSample s;
+      s.strain_units = i * n.sample_every_strain;
+      s.taylor_deformation = i == 0 ? 1e-5 : d(s.strain_units);
+      samples.push_back(s);
+      const double drift = steady_window_drift(samples, n);
+      if (std::isfinite(drift) && drift < n.steady_tolerance) means_only = s.strain_units;
+    }
+  }
+  EXPECT_LT(means_only, stop);
+}
+
 TEST(ShearFlowSteadyRule, ZeroToleranceIsOff) {
   ShearFlowNumerics n = default_rule();
   n.steady_tolerance = 0.0;

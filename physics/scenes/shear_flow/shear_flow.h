@@ -88,7 +88,9 @@ struct ShearFlowNumerics {
   // window before it differ by less than steady_tolerance relative to the
   // last one (shear_flow_is_steady). Sample noise and the tank-treading wobble
   // of D (+-0.7 % at Ca = 0.02) average out within a window; a band over one
-  // window never closed on them. 0 disables the steady stop (the run goes to
+  // window closes only where the wobble happens to be flat. The slope of D over the last window must also
+  // stay below 3 steady_tolerance (an overshoot of D gives two equal window
+  // means while D still falls). 0 disables the steady stop (the run goes to
   // max_strain / max_time_s). Measured stop points: docs/accuracy/shear_flow.md.
   double steady_tolerance = 2e-3;      // in [0, 1)
   double steady_window_strain = 1.5;   // > 0, at least 2 samples
@@ -378,7 +380,13 @@ int steady_window_samples(const ShearFlowNumerics& n);
 // two full windows after the first (undeformed) sample. A pure function of the
 // samples, so a resumed run stops where the uninterrupted one does.
 double steady_window_drift(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n);
-// steady_tolerance > 0 and steady_window_drift < steady_tolerance.
+// |least-squares slope of D over the last window| x steady_window_strain /
+// mean D there; NaN with fewer than two samples in it.
+double steady_window_trend(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n);
+// The trend test allows this multiple of steady_tolerance.
+inline constexpr double kSteadyTrendFactor = 3.0;
+// steady_tolerance > 0, steady_window_drift < steady_tolerance and
+// steady_window_trend < kSteadyTrendFactor steady_tolerance.
 bool shear_flow_is_steady(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n);
 double small_ca_inclination_deg_lambda1(double capillary_number);
 

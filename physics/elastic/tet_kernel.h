@@ -82,18 +82,19 @@ struct TetStressLanes {
 using TetStress = TetStressLanes<1>;
 
 // Stage 1: F = D B and its cofactor; returns J = det F (paper eq. 2-3, 11-12).
-// Every array is read with stride S (S = kLanes of a lane block, 1 for one tet):
-// b[S k] = B_k, y0[S i] = y_i^1, f[S k] = F_k.
-template <int S = 1>
+// b, f and cof are read with stride S (S = kLanes of a lane block, 1 for one
+// tet), the positions with stride SY (default S): b[S k] = B_k,
+// y0[SY i] = y_i^1, f[S k] = F_k.
+template <int S = 1, int SY = S>
 inline __attribute__((always_inline)) double deformation_gradient(const double* b, const double* y0,
                                                                   const double* y1, const double* y2,
                                                                   const double* y3, double* f, double* cof) {
   // D_ik = y_i^k - y_i^4   (paper eq. 11, positions instead of displacements since J B = 1)
   double d[9];
   for (int i = 0; i < 3; ++i) {
-    d[3 * i + 0] = y0[S * i] - y3[S * i];
-    d[3 * i + 1] = y1[S * i] - y3[S * i];
-    d[3 * i + 2] = y2[S * i] - y3[S * i];
+    d[3 * i + 0] = y0[SY * i] - y3[SY * i];
+    d[3 * i + 1] = y1[SY * i] - y3[SY * i];
+    d[3 * i + 2] = y2[SY * i] - y3[SY * i];
   }
   double fl[9];
   // F_il = D_ik B_kl   (paper eq. 2 and 11-12)

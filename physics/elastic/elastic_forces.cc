@@ -136,9 +136,9 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
         s.det_f[lane] = det_f;
         // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
         const double j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
-        kernel::stress_from_gradient<kMooneyRivlin>(mu1_b[lane], mu2_scale * mu2_b[lane],
-                                                    kappa_scale * kappa_b[lane], j_m13, s, lane,
-                                                    pressure_scale * pressure_b[lane]);
+        kernel::stress_from_gradient<kMooneyRivlin, kLanes, false>(mu1_b[lane], mu2_scale * mu2_b[lane],
+                                                                   kappa_scale * kappa_b[lane], j_m13, s,
+                                                                   lane, pressure_scale * pressure_b[lane]);
         if constexpr (kForces) {
           kernel::forces_from_stress<kLanes>(b + lane, volume_b[lane], s.stress + lane, blk.forces + lane);
         }
@@ -149,21 +149,46 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
     } else {
       run_lanes(lane_begin, lane_end);
     }
-    for (int lane = lane_begin; lane < lane_end; ++lane) {
-      const std::int64_t t = first + lane;
-      if (blk.stress.det_f[lane] <= 0.0) {
-        first_inverted = std::min(first_inverted, t);
-        continue;
-      }
-      energy += volume[t] * blk.stress.energy_density[lane];
-      if constexpr (kForces) {
-        for (int a = 0; a < 4; ++a) {
-          double* out = forces + 3 * static_cast<std::int64_t>(v0[kLanes * a + lane]);
-          out[0] += blk.forces[kLanes * (3 * a) + lane];
-          out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
-          out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
+    // Energy in tet order, forces scattered tet after tet (the same sums in
+    // the same order on every level). A full block without an inverted tet
+    // runs unrolled with constant offsets.
+    const auto scatter_lanes = [&](int lo, int hi) __attribute__((always_inline)) {
+      for (int lane = lo; lane < hi; ++lane) {
+        const std::int64_t t = first + lane;
+        if (blk.stress.det_f[lane] <= 0.0) {
+          first_inverted = std::min(first_inverted, t);
+          continue;
+        }
+        energy += volume_b[lane] * blk.stress.energy_density[lane];
+        if constexpr (kForces) {
+          for (int a = 0; a < 4; ++a) {
+            double* out = forces + 3 * static_cast<std::int64_t>(v0[kLanes * a + lane]);
+            out[0] += blk.forces[kLanes * (3 * a) + lane];
+            out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
+            out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
+          }
         }
       }
+    };
+    bool any_inverted = false;
+    for (int lane = 0; lane < kLanes; ++lane) any_inverted |= blk.stress.det_f[lane] <= 0.0;
+    if (lane_begin == 0 && lane_end == kLanes && !any_inverted) {
+#pragma GCC unroll 16
+      for (int lane = 0; lane < kLanes; ++lane) energy += volume_b[lane] * blk.stress.energy_density[lane];
+      if constexpr (kForces) {
+#pragma GCC unroll 16
+        for (int lane = 0; lane < kLanes; ++lane) {
+#pragma GCC unroll 4
+          for (int a = 0; a < 4; ++a) {
+            double* out = forces + 3 * static_cast<std::int64_t>(v0[kLanes * a + lane]);
+            out[0] += blk.forces[kLanes * (3 * a) + lane];
+            out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
+            out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
+          }
+        }
+      }
+    } else {
+      scatter_lanes(lane_begin, lane_end);
     }
   }
   return energy;

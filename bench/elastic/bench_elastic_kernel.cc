@@ -179,6 +179,7 @@ const ColouredScene& coloured_scene(double w) {
       permuted.mu2_pa.push_back(body.mu2_pa[t]);
       permuted.kappa_pa.push_back(body.kappa_pa[t]);
     }
+    build_lane_blocks(permuted);
     slot->offsets = colouring.offsets;
   }
   return *slot;

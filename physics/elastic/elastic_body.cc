@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -36,6 +37,23 @@ void vertex_tets(std::span<const std::int32_t> tets, std::size_t num_vertices,
 
 using detail::vertex_tets;
 
+void build_lane_blocks(ElasticBody& body) {
+  const std::size_t num_tets = body.num_tets();
+  const std::size_t num_blocks = (num_tets + kTetBlockLanes - 1) / kTetBlockLanes;
+  body.block_b_matrix.assign(num_blocks * 9 * kTetBlockLanes, 0.0);
+  body.block_vertices.assign(num_blocks * 4 * kTetBlockLanes, 0);
+  for (std::size_t t = 0; t < num_tets; ++t) {
+    const std::size_t block = t / kTetBlockLanes;
+    const std::size_t lane = t % kTetBlockLanes;
+    for (int k = 0; k < 9; ++k) {
+      body.block_b_matrix[kTetBlockLanes * (9 * block + k) + lane] = body.b_matrix[9 * t + k];
+    }
+    for (int a = 0; a < 4; ++a) {
+      body.block_vertices[kTetBlockLanes * (4 * block + a) + lane] = body.tets[4 * t + a];
+    }
+  }
+}
+
 StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<const Material> materials,
                                         VolumetricTerm volumetric) {
   const std::size_t num_vertices = mesh.num_vertices();
@@ -54,6 +72,11 @@ StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<con
     moduli.push_back(moduli_from(materials[m]));
   }
 
+  // The force loop gathers positions with 32-bit offsets 3 v (elastic_forces.cc).
+  if (num_vertices > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max() / 3)) {
+    return invalid_argument("mesh: " + std::to_string(num_vertices) + " vertices; at most " +
+                            std::to_string(std::numeric_limits<std::int32_t>::max() / 3) + " are supported");
+  }
   ElasticBody body;
   body.num_vertices = num_vertices;
   body.tets = mesh.tets;
@@ -105,6 +128,7 @@ StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<con
     body.mu2_pa[t] = moduli[region].mu2_pa;
     body.kappa_pa[t] = moduli[region].kappa_pa;
   }
+  build_lane_blocks(body);
   body.neo_hookean =
       std::all_of(body.mu2_pa.begin(), body.mu2_pa.end(), [](double mu2) { return mu2 == 0.0; });
   body.volumetric = volumetric;

@@ -32,13 +32,24 @@ enum class VolumetricTerm {
   kNodalAverage,
 };
 
+// Tets per lane block of the force loop (elastic_forces.cc) and of the
+// lane-blocked copies in ElasticBody.
+constexpr int kTetBlockLanes = 16;
+
 // Precomputed reference data, one entry per tetrahedron (structure of arrays).
 struct ElasticBody {
   std::vector<std::int32_t> tets;                // 4 per tet, copied from the mesh
   std::vector<double> b_matrix;                  // 9 per tet, row-major B = J^-1
   std::vector<double> ref_volume_m3;             // V0 per tet
   std::vector<double> mu1_pa, mu2_pa, kappa_pa;  // per tet, from its region's material
-  bool neo_hookean = true;                       // every mu2 == 0: the K-term work is skipped
+  // Lane-blocked copies for the force loop, blocks of kTetBlockLanes tets
+  // (the last padded with zeros): tet l of block n has B_k at
+  // block_b_matrix[kTetBlockLanes (9 n + k) + l] and local vertex a at
+  // block_vertices[kTetBlockLanes (4 n + a) + l]. The loop then reads B with
+  // vector loads instead of gathering it tet by tet (88 bytes per tet).
+  std::vector<double> block_b_matrix;
+  std::vector<std::int32_t> block_vertices;
+  bool neo_hookean = true;  // every mu2 == 0: the K-term work is skipped
   std::size_t num_vertices = 0;
   VolumetricTerm volumetric = VolumetricTerm::kPerTet;
   // kNodalAverage only: V_a and (kappa V)_a per vertex, and the tetrahedra
@@ -49,6 +60,11 @@ struct ElasticBody {
 
   std::size_t num_tets() const { return ref_volume_m3.size(); }
 };
+
+// (Re)builds block_b_matrix and block_vertices from tets and b_matrix; for a
+// body assembled by hand (make_elastic_body calls it). The force loop builds a
+// temporary copy of a body without them, which is slow.
+void build_lane_blocks(ElasticBody& body);
 
 // Fails (kFailedPrecondition) on a tetrahedron with non-positive reference
 // volume, naming its index. `materials` is indexed by mesh::Region.

@@ -4,6 +4,9 @@
 // add_elastic_forces_of_range, elastic_energy) and the smallest deformed to
 // reference volume ratio (min_volume_ratio).
 #include <omp.h>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include <algorithm>
 #include <cstdint>
@@ -25,34 +28,78 @@ using detail::volumetric_pressures;
 // Energy (and, with kForces, the forces scattered into `forces`) of tets
 // [begin, end). The first inverted tet of the range goes to first_inverted.
 //
-// The tets run in blocks of kLanes: their vertex positions, B matrices and
-// material are gathered into a structure of arrays (lane = tet), the stages of
-// tet_kernel.h run in one lane loop that the compiler vectorises across tets
-// (the inverse cube root, a long dependency chain, overlaps over the lanes),
-// and the forces are scattered and the energy summed tet after tet in order.
+// The tets run in the lane blocks of ElasticBody (kTetBlockLanes tets, lane =
+// tet; a range that starts or ends inside a block runs part of its lanes):
+// one lane loop over the stages of tet_kernel.h that the compiler vectorises
+// across tets (the inverse cube root, a long dependency chain, overlaps over
+// the lanes). B, the vertex indices and the material are read from the
+// blocked copies with vector loads; the positions by vertex index for the whole
+// block (vector gathers where the level has them, AVX2 and AVX-512). The
+// forces are scattered and the energy summed tet after tet in order.
 // The lane loop has no FMA contraction (-ffp-contract=off, CMakeLists.txt) and
 // the same operation order as one tet alone, so every SIMD level gives the
 // same bits as the scalar tangent path.
 // With tet_pressure (kNodalAverage) the tets carry no kappa term; their
 // stress gets tet_pressure[t] cof(F) instead, and the volumetric energy is
 // summed per vertex by volumetric_pressures.
-constexpr int kLanes = 16;
+constexpr int kLanes = kTetBlockLanes;
 
 struct TetBlock {
   alignas(64) double y[12 * kLanes];       // y[kLanes (3 a + i) + lane] = y_i of local vertex a
-  alignas(64) double b[9 * kLanes];        // B_k at [kLanes k + lane]
-  alignas(64) double forces[12 * kLanes];  // as y
+  alignas(64) double forces[12 * kLanes];  // forces[kLanes (3 a + i) + lane] = f_i of local vertex a
   kernel::TetStressLanes<kLanes> stress;
 };
 
-template <bool kMooneyRivlin, bool kForces>
+// The positions of the 4 vertices of the kLanes tets of a block into
+// y_lanes (TetBlock::y layout), vertex indices in the ElasticBody::block_vertices
+// layout. Always all lanes: the padding of the last block names vertex 0.
+// One copy per SIMD level; only copies, so every level gives the same bits.
+using GatherPositions = void (*)(const double* y, const std::int32_t* vertices, double* y_lanes);
+
+void gather_positions_generic(const double* y, const std::int32_t* vertices, double* y_lanes) {
+  for (int a = 0; a < 4; ++a) {
+    for (int lane = 0; lane < kLanes; ++lane) {
+      const double* ya = y + 3 * static_cast<std::int64_t>(vertices[kLanes * a + lane]);
+      for (int i = 0; i < 3; ++i) y_lanes[kLanes * (3 * a + i) + lane] = ya[i];
+    }
+  }
+}
+#if defined(__x86_64__)
+// 32-bit offsets 3 v (in doubles): make_elastic_body keeps 3 num_vertices below 2^31.
+__attribute__((target("avx2"))) void gather_positions_avx2(const double* y, const std::int32_t* vertices,
+                                                           double* y_lanes) {
+  for (int a = 0; a < 4; ++a) {
+    for (int c = 0; c < kLanes; c += 4) {
+      const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(vertices + kLanes * a + c));
+      const __m128i offset = _mm_add_epi32(v, _mm_add_epi32(v, v));
+      for (int i = 0; i < 3; ++i) {
+        _mm256_store_pd(y_lanes + kLanes * (3 * a + i) + c, _mm256_i32gather_pd(y + i, offset, 8));
+      }
+    }
+  }
+}
+__attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void gather_positions_avx512(
+    const double* y, const std::int32_t* vertices, double* y_lanes) {
+  for (int a = 0; a < 4; ++a) {
+    for (int c = 0; c < kLanes; c += 8) {
+      const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(vertices + kLanes * a + c));
+      const __m256i offset = _mm256_add_epi32(v, _mm256_add_epi32(v, v));
+      for (int i = 0; i < 3; ++i) {
+        _mm512_store_pd(y_lanes + kLanes * (3 * a + i) + c, _mm512_i32gather_pd(offset, y + i, 8));
+      }
+    }
+  }
+}
+#endif
+
+template <bool kMooneyRivlin, bool kForces, GatherPositions kGather>
 inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBody& body, const double* y,
                                                                  double* forces, std::int64_t begin,
                                                                  std::int64_t end,
                                                                  std::int64_t& first_inverted,
                                                                  const double* tet_pressure) {
-  const std::int32_t* tets = body.tets.data();
-  const double* b_matrix = body.b_matrix.data();
+  const double* block_b = body.block_b_matrix.data();
+  const std::int32_t* block_vertices = body.block_vertices.data();
   const double* volume = body.ref_volume_m3.data();
   const double* mu1 = body.mu1_pa.data();
   const double* mu2 = body.mu2_pa.data();
@@ -65,55 +112,83 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
   const double* pressure = tet_pressure == nullptr ? kappa : tet_pressure;
   TetBlock blk;
   double energy = 0.0;
-  for (std::int64_t first = begin; first < end; first += kLanes) {
-    const int size = static_cast<int>(std::min<std::int64_t>(kLanes, end - first));
-    // Gather the positions and B into lanes (the material is read in place).
-    for (int lane = 0; lane < size; ++lane) {
-      const std::int64_t t = first + lane;
-      const std::int32_t* v = tets + 4 * t;
-      for (int a = 0; a < 4; ++a) {
-        const double* ya = y + 3 * static_cast<std::int64_t>(v[a]);
-        for (int i = 0; i < 3; ++i) blk.y[kLanes * (3 * a + i) + lane] = ya[i];
-      }
-      for (int k = 0; k < 9; ++k) blk.b[kLanes * k + lane] = b_matrix[9 * t + k];
-    }
+  for (std::int64_t block = begin / kLanes; block * kLanes < end; ++block) {
+    const std::int64_t first = block * kLanes;
+    const int lane_begin = static_cast<int>(std::max<std::int64_t>(0, begin - first));
+    const int lane_end = static_cast<int>(std::min<std::int64_t>(kLanes, end - first));
+    const double* b = block_b + 9 * kLanes * block;
+    const std::int32_t* v0 = block_vertices + 4 * kLanes * block;
+    kGather(y, v0, blk.y);
     const double* volume_b = volume + first;
     const double* mu1_b = mu1 + first;
     const double* mu2_b = mu2 + first;
     const double* kappa_b = kappa + first;
     const double* pressure_b = pressure + first;
+    // The stages over lanes [lo, hi); a full block runs them with constant
+    // bounds, which the compiler vectorises without a remainder loop.
+    const auto run_lanes = [&](int lo, int hi) __attribute__((always_inline)) {
 #pragma omp simd
-    for (int lane = 0; lane < size; ++lane) {
-      kernel::TetStressLanes<kLanes>& s = blk.stress;
-      const double* yl = blk.y + lane;
-      const double det_f = kernel::deformation_gradient<kLanes>(
-          blk.b + lane, yl, yl + 3 * kLanes, yl + 6 * kLanes, yl + 9 * kLanes, s.f + lane, s.cof + lane);
-      s.det_f[lane] = det_f;
-      // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
-      const double j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
-      kernel::stress_from_gradient<kMooneyRivlin>(mu1_b[lane], mu2_scale * mu2_b[lane],
-                                                  kappa_scale * kappa_b[lane], j_m13, s, lane,
-                                                  pressure_scale * pressure_b[lane]);
-      if constexpr (kForces) {
-        kernel::forces_from_stress<kLanes>(blk.b + lane, volume_b[lane], s.stress + lane, blk.forces + lane);
-      }
-    }
-    for (int lane = 0; lane < size; ++lane) {
-      const std::int64_t t = first + lane;
-      if (blk.stress.det_f[lane] <= 0.0) {
-        first_inverted = std::min(first_inverted, t);
-        continue;
-      }
-      energy += volume[t] * blk.stress.energy_density[lane];
-      if constexpr (kForces) {
-        const std::int32_t* v = tets + 4 * t;
-        for (int a = 0; a < 4; ++a) {
-          double* out = forces + 3 * static_cast<std::int64_t>(v[a]);
-          out[0] += blk.forces[kLanes * (3 * a) + lane];
-          out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
-          out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
+      for (int lane = lo; lane < hi; ++lane) {
+        kernel::TetStressLanes<kLanes>& s = blk.stress;
+        const double* yl = blk.y + lane;
+        const double det_f = kernel::deformation_gradient<kLanes>(
+            b + lane, yl, yl + 3 * kLanes, yl + 6 * kLanes, yl + 9 * kLanes, s.f + lane, s.cof + lane);
+        s.det_f[lane] = det_f;
+        // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
+        const double j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
+        kernel::stress_from_gradient<kMooneyRivlin, kLanes, false>(mu1_b[lane], mu2_scale * mu2_b[lane],
+                                                                   kappa_scale * kappa_b[lane], j_m13, s,
+                                                                   lane, pressure_scale * pressure_b[lane]);
+        if constexpr (kForces) {
+          kernel::forces_from_stress<kLanes>(b + lane, volume_b[lane], s.stress + lane, blk.forces + lane);
         }
       }
+    };
+    if (lane_begin == 0 && lane_end == kLanes) {
+      run_lanes(0, kLanes);
+    } else {
+      run_lanes(lane_begin, lane_end);
+    }
+    // Energy in tet order, forces scattered tet after tet (the same sums in
+    // the same order on every level). A full block without an inverted tet
+    // runs unrolled with constant offsets.
+    const auto scatter_lanes = [&](int lo, int hi) __attribute__((always_inline)) {
+      for (int lane = lo; lane < hi; ++lane) {
+        const std::int64_t t = first + lane;
+        if (blk.stress.det_f[lane] <= 0.0) {
+          first_inverted = std::min(first_inverted, t);
+          continue;
+        }
+        energy += volume_b[lane] * blk.stress.energy_density[lane];
+        if constexpr (kForces) {
+          for (int a = 0; a < 4; ++a) {
+            double* out = forces + 3 * static_cast<std::int64_t>(v0[kLanes * a + lane]);
+            out[0] += blk.forces[kLanes * (3 * a) + lane];
+            out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
+            out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
+          }
+        }
+      }
+    };
+    bool any_inverted = false;
+    for (int lane = 0; lane < kLanes; ++lane) any_inverted |= blk.stress.det_f[lane] <= 0.0;
+    if (lane_begin == 0 && lane_end == kLanes && !any_inverted) {
+#pragma GCC unroll 16
+      for (int lane = 0; lane < kLanes; ++lane) energy += volume_b[lane] * blk.stress.energy_density[lane];
+      if constexpr (kForces) {
+#pragma GCC unroll 16
+        for (int lane = 0; lane < kLanes; ++lane) {
+#pragma GCC unroll 4
+          for (int a = 0; a < 4; ++a) {
+            double* out = forces + 3 * static_cast<std::int64_t>(v0[kLanes * a + lane]);
+            out[0] += blk.forces[kLanes * (3 * a) + lane];
+            out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
+            out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
+          }
+        }
+      }
+    } else {
+      scatter_lanes(lane_begin, lane_end);
     }
   }
   return energy;
@@ -125,8 +200,8 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
 template <bool kMooneyRivlin, bool kForces>
 double evaluate_range_generic(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
                               std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure) {
-  return evaluate_range_body<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
-                                                     tet_pressure);
+  return evaluate_range_body<kMooneyRivlin, kForces, gather_positions_generic>(body, y, forces, begin, end,
+                                                                               first_inverted, tet_pressure);
 }
 #if defined(__x86_64__)
 template <bool kMooneyRivlin, bool kForces>
@@ -134,15 +209,15 @@ __attribute__((target("avx2"))) double evaluate_range_avx2(const ElasticBody& bo
                                                            double* forces, std::int64_t begin,
                                                            std::int64_t end, std::int64_t& first_inverted,
                                                            const double* tet_pressure) {
-  return evaluate_range_body<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
-                                                     tet_pressure);
+  return evaluate_range_body<kMooneyRivlin, kForces, gather_positions_avx2>(body, y, forces, begin, end,
+                                                                            first_inverted, tet_pressure);
 }
 template <bool kMooneyRivlin, bool kForces>
 __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) double evaluate_range_avx512(
     const ElasticBody& body, const double* y, double* forces, std::int64_t begin, std::int64_t end,
     std::int64_t& first_inverted, const double* tet_pressure) {
-  return evaluate_range_body<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
-                                                     tet_pressure);
+  return evaluate_range_body<kMooneyRivlin, kForces, gather_positions_avx512>(body, y, forces, begin, end,
+                                                                              first_inverted, tet_pressure);
 }
 #endif
 
@@ -157,6 +232,14 @@ template <bool kMooneyRivlin, bool kForces>
 double evaluate_range(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
                       std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure,
                       TetSimd simd = TetSimd::kAuto) {
+  const std::size_t num_blocks = (body.num_tets() + kLanes - 1) / kLanes;
+  if (body.block_b_matrix.size() != 9 * kLanes * num_blocks ||
+      body.block_vertices.size() != 4 * kLanes * num_blocks) {
+    ElasticBody blocked = body;  // assembled by hand without build_lane_blocks
+    build_lane_blocks(blocked);
+    return evaluate_range<kMooneyRivlin, kForces>(blocked, y, forces, begin, end, first_inverted,
+                                                  tet_pressure, simd);
+  }
   switch (resolve_tet_simd(simd)) {
 #if defined(__x86_64__)
     case TetSimd::kAvx512:

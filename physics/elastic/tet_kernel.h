@@ -82,18 +82,19 @@ struct TetStressLanes {
 using TetStress = TetStressLanes<1>;
 
 // Stage 1: F = D B and its cofactor; returns J = det F (paper eq. 2-3, 11-12).
-// Every array is read with stride S (S = kLanes of a lane block, 1 for one tet):
-// b[S k] = B_k, y0[S i] = y_i^1, f[S k] = F_k.
-template <int S = 1>
+// b, f and cof are read with stride S (S = kLanes of a lane block, 1 for one
+// tet), the positions with stride SY (default S): b[S k] = B_k,
+// y0[SY i] = y_i^1, f[S k] = F_k.
+template <int S = 1, int SY = S>
 inline __attribute__((always_inline)) double deformation_gradient(const double* b, const double* y0,
                                                                   const double* y1, const double* y2,
                                                                   const double* y3, double* f, double* cof) {
   // D_ik = y_i^k - y_i^4   (paper eq. 11, positions instead of displacements since J B = 1)
   double d[9];
   for (int i = 0; i < 3; ++i) {
-    d[3 * i + 0] = y0[S * i] - y3[S * i];
-    d[3 * i + 1] = y1[S * i] - y3[S * i];
-    d[3 * i + 2] = y2[S * i] - y3[S * i];
+    d[3 * i + 0] = y0[SY * i] - y3[SY * i];
+    d[3 * i + 1] = y1[SY * i] - y3[SY * i];
+    d[3 * i + 2] = y2[SY * i] - y3[SY * i];
   }
   double fl[9];
   // F_il = D_ik B_kl   (paper eq. 2 and 11-12)
@@ -125,8 +126,10 @@ inline __attribute__((always_inline)) double deformation_gradient(const double* 
 // from s.f, s.cof, s.det_f (> 0) and J^-1/3 (stage 2: inverse_cube_root).
 // `pressure` adds pressure cof(F) to the stress and nothing to the energy
 // density (the nodal-averaged volumetric energy is summed per vertex,
-// elastic_forces.cc).
-template <bool kMooneyRivlin, int S>
+// elastic_forces.cc). kTangentData false (the force loop) skips storing what
+// only stress_derivative reads (c, fc and the scalars other than det_f and
+// energy_density): fewer stores, the same arithmetic.
+template <bool kMooneyRivlin, int S, bool kTangentData = true>
 inline __attribute__((always_inline)) void stress_from_gradient(double mu1, double mu2, double kappa,
                                                                 double j_m13, TetStressLanes<S>& s, int lane,
                                                                 double pressure = 0.0) {
@@ -136,12 +139,14 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
   // J^-2/3 and 1/J as products of J^-1/3: no pow(), no division
   const double j_m23 = j_m13 * j_m13;
   const double inv_det = j_m23 * j_m13;
-  s.inv_det[lane] = inv_det;
-  s.j_m23[lane] = j_m23;
+  if constexpr (kTangentData) {
+    s.inv_det[lane] = inv_det;
+    s.j_m23[lane] = j_m23;
+  }
   // T_C = tr C = F_il F_il   (paper eq. 3-4)
   double trace_c = 0.0;
   for (int k = 0; k < 9; ++k) trace_c += f[S * k] * f[S * k];
-  s.trace_c[lane] = trace_c;
+  if constexpr (kTangentData) s.trace_c[lane] = trace_c;
   const double jm1 = det_f - 1.0;
   // I = T_C J^-2/3   (paper eq. 3)
   const double inv_i = trace_c * j_m23;
@@ -155,7 +160,7 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
   double* stress = s.stress + lane;
   if constexpr (kMooneyRivlin) {
     const double j_m43 = j_m23 * j_m23;
-    s.j_m43[lane] = j_m43;
+    if constexpr (kTangentData) s.j_m43[lane] = j_m43;
     // C = F^T F (symmetric: six products)
     double c[9];
     c[0] = f[0] * f[0] + f[S * 3] * f[S * 3] + f[S * 6] * f[S * 6];
@@ -164,13 +169,15 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
     c[1] = c[3] = f[0] * f[S * 1] + f[S * 3] * f[S * 4] + f[S * 6] * f[S * 7];
     c[2] = c[6] = f[0] * f[S * 2] + f[S * 3] * f[S * 5] + f[S * 6] * f[S * 8];
     c[5] = c[7] = f[S * 1] * f[S * 2] + f[S * 4] * f[S * 5] + f[S * 7] * f[S * 8];
-    for (int k = 0; k < 9; ++k) s.c[S * k + lane] = c[k];
+    if constexpr (kTangentData) {
+      for (int k = 0; k < 9; ++k) s.c[S * k + lane] = c[k];
+    }
     // T_C2 = tr C^2 = C_lm C_lm   (paper eq. 3-4)
     const double trace_c2 =
         c[0] * c[0] + c[4] * c[4] + c[8] * c[8] + 2.0 * (c[1] * c[1] + c[2] * c[2] + c[5] * c[5]);
     // K = 1/2 (T_C^2 - T_C2) J^-4/3   (paper eq. 3)
     const double k_numerator = 0.5 * (trace_c * trace_c - trace_c2);
-    s.k_numerator[lane] = k_numerator;
+    if constexpr (kTangentData) s.k_numerator[lane] = k_numerator;
     const double inv_k = k_numerator * j_m43;
     energy += 0.5 * mu2 * (inv_k - 3.0);
     coef_f += mu2 * trace_c * j_m43;
@@ -182,7 +189,7 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
       for (int l = 0; l < 3; ++l) {
         const double fc_il =
             f[S * 3 * i] * c[l] + f[S * (3 * i + 1)] * c[3 + l] + f[S * (3 * i + 2)] * c[6 + l];
-        fc[S * (3 * i + l)] = fc_il;
+        if constexpr (kTangentData) fc[S * (3 * i + l)] = fc_il;
         stress[S * (3 * i + l)] =
             coef_f * f[S * (3 * i + l)] + coef_fc * fc_il + coef_cof * cof[S * (3 * i + l)];
       }

@@ -178,6 +178,48 @@ TEST(ElasticSimdForces, InvertedTetInsideBlockAtEveryLevel) {
   }
 }
 
+// The lane-blocked copies hold B and the vertices of every tet at its block
+// and lane (zero padding after the last tet), and a body assembled without
+// them (the force loop then blocks a temporary copy) gives the same bits.
+TEST(ElasticSimdForces, LaneBlocksHoldEveryTetAndAreOptional) {
+  const mesh::TetMesh box = make_box_mesh(3, 3, 2, kBoxSize, kBoxSize, kBoxSize);
+  const ElasticBody body = make_body(box, material(0.5, 0.3));
+  const std::size_t n = body.num_tets();
+  ASSERT_NE(n % kTetBlockLanes, 0u);  // a padded last block
+  const std::size_t blocks = (n + kTetBlockLanes - 1) / kTetBlockLanes;
+  ASSERT_EQ(body.block_b_matrix.size(), 9 * kTetBlockLanes * blocks);
+  ASSERT_EQ(body.block_vertices.size(), 4 * kTetBlockLanes * blocks);
+  for (std::size_t t = 0; t < blocks * kTetBlockLanes; ++t) {
+    const std::size_t block = t / kTetBlockLanes, lane = t % kTetBlockLanes;
+    for (int k = 0; k < 9; ++k) {
+      EXPECT_EQ(body.block_b_matrix[kTetBlockLanes * (9 * block + k) + lane],
+                t < n ? body.b_matrix[9 * t + k] : 0.0);
+    }
+    for (int a = 0; a < 4; ++a) {
+      EXPECT_EQ(body.block_vertices[kTetBlockLanes * (4 * block + a) + lane],
+                t < n ? body.tets[4 * t + a] : 0);
+    }
+  }
+  std::mt19937 rng(7);
+  const std::vector<double> y = random_deformation(box, rng, 0.1 * first_edge_m(box));
+  ElasticBody by_hand = body;
+  by_hand.block_b_matrix.clear();
+  by_hand.block_vertices.clear();
+  for (const TetSimd level : kLevels) {
+    if (!tet_simd_supported(level)) continue;
+    SCOPED_TRACE(tet_simd_name(level));
+    std::vector<double> expected(y.size(), 0.0), forces(y.size(), 0.0);
+    const ElasticEvaluation a = add_elastic_forces_of_range(body, y.data(), expected.data(), 2, n, level);
+    const ElasticEvaluation b = add_elastic_forces_of_range(by_hand, y.data(), forces.data(), 2, n, level);
+    EXPECT_GT(max_abs(forces), 0.0);
+    EXPECT_EQ(forces, expected);
+    EXPECT_EQ(a.energy_j, b.energy_j);
+  }
+  build_lane_blocks(by_hand);
+  EXPECT_EQ(by_hand.block_b_matrix, body.block_b_matrix);
+  EXPECT_EQ(by_hand.block_vertices, body.block_vertices);
+}
+
 TEST(ElasticSimdForces, BestLevelIsSupportedAndNamed) {
   EXPECT_TRUE(tet_simd_supported(best_tet_simd()));
   EXPECT_TRUE(tet_simd_supported(TetSimd::kGeneric));

@@ -535,20 +535,33 @@ Status Store::migrate() {
   return txn.commit();
 }
 
+namespace {
+
+// The job an earlier submit of this owner's non-empty request_id created, if
+// any: a job and a study are idempotent by the same key.
+StatusOr<std::optional<v1::Job>> job_of_request(sqlite3* db, const std::string& owner,
+                                                const std::string& request_id) {
+  if (request_id.empty()) return std::optional<v1::Job>{};
+  Stmt find(db, "SELECT id FROM jobs WHERE request_id = ?");
+  find.bind(1, scoped_request_id(owner, request_id));
+  if (find.step() != SQLITE_ROW) return std::optional<v1::Job>{};
+  auto job = load_job(db, find.int64(0));
+  if (!job.ok()) return job.status();
+  return std::optional<v1::Job>(std::move(*job));
+}
+
+}  // namespace
+
 StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::string& request_id,
                                          std::int64_t estimated_memory_bytes, std::int64_t now_ms,
                                          const std::string& owner) {
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
-  if (!request_id.empty()) {
-    Stmt find(writer_, "SELECT id FROM jobs WHERE request_id = ?");
-    find.bind(1, scoped_request_id(owner, request_id));
-    if (find.step() == SQLITE_ROW) {
-      auto job = load_job(writer_, find.int64(0));
-      if (!job.ok()) return job.status();
-      return Submitted{std::move(*job), true};
-    }
+  if (auto earlier = job_of_request(writer_, owner, request_id); !earlier.ok()) {
+    return earlier.status();
+  } else if (earlier->has_value()) {
+    return Submitted{std::move(**earlier), true};
   }
   Stmt insert(writer_,
               "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner) "
@@ -580,14 +593,10 @@ StatusOr<Store::Submitted> Store::submit_study(const v1::JobSpec& study,
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
-  if (!request_id.empty()) {
-    Stmt find(writer_, "SELECT id FROM jobs WHERE request_id = ?");
-    find.bind(1, scoped_request_id(owner, request_id));
-    if (find.step() == SQLITE_ROW) {
-      auto job = load_job(writer_, find.int64(0));
-      if (!job.ok()) return job.status();
-      return Submitted{std::move(*job), true};
-    }
+  if (auto earlier = job_of_request(writer_, owner, request_id); !earlier.ok()) {
+    return earlier.status();
+  } else if (earlier->has_value()) {
+    return Submitted{std::move(**earlier), true};
   }
   if (children.empty()) return Status(StatusCode::kInvalidArgument, "study: no children");
   std::int64_t memory = 0;
@@ -1043,11 +1052,11 @@ Status Store::delete_job(std::int64_t job_id, std::vector<std::int64_t>* deleted
     while (find.step() == SQLITE_ROW) children.push_back(find.int64(0));
   }
   // A terminal study has only terminal children (it ends after its last child).
-  for (const char* sql : {"DELETE FROM events WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
-                          "DELETE FROM checkpoints WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
-                          "DELETE FROM jobs WHERE parent_id = ?1", "DELETE FROM events WHERE job_id = ?1",
-                          "DELETE FROM checkpoints WHERE job_id = ?1",
-                          "DELETE FROM jobs WHERE id = ?1"}) {
+  for (const char* sql :
+       {"DELETE FROM events WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
+        "DELETE FROM checkpoints WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
+        "DELETE FROM jobs WHERE parent_id = ?1", "DELETE FROM events WHERE job_id = ?1",
+        "DELETE FROM checkpoints WHERE job_id = ?1", "DELETE FROM jobs WHERE id = ?1"}) {
     Stmt remove(writer_, sql);
     remove.bind(1, job_id);
     if (remove.step() != SQLITE_DONE) return sqlite_error(writer_, "delete job");

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "rpc/rpc.h"
+#include "worker/file_upload.h"
 
 namespace cellflow::worker {
 
@@ -32,32 +33,14 @@ rpc::RetryOptions checkpoint_retry() {
 Status upload_checkpoint(v1::WorkerService::StubInterface& stub, const v1::Lease& lease,
                          const jobs::CheckpointWritten& written) {
   const grpc::Status status = rpc::call_with_retry(checkpoint_retry(), [&](grpc::ClientContext& context) {
-    std::ifstream in(written.path, std::ios::binary);
-    if (!in) return grpc::Status(grpc::StatusCode::NOT_FOUND, "no checkpoint file");
     v1::UploadCheckpointResponse response;
-    auto writer = stub.UploadCheckpoint(&context, &response);
-    if (!writer) return grpc::Status(grpc::StatusCode::UNIMPLEMENTED, "no checkpoint upload");
-    std::vector<char> buffer(1 << 20);
-    std::int64_t offset = 0;
-    bool first = true;
-    while (in || first) {
-      in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-      const std::streamsize n = in.gcount();
-      if (n == 0 && !first) break;
-      v1::CheckpointChunk chunk;
-      if (first) {
-        *chunk.mutable_lease() = lease;
-        chunk.mutable_info()->set_time_step(written.time_step);
-        chunk.mutable_info()->set_last_sample_index(written.last_sample_index);
-      }
-      first = false;
-      chunk.set_offset(offset);
-      chunk.set_data(buffer.data(), static_cast<std::size_t>(n));
-      if (!writer->Write(chunk)) break;
-      offset += n;
-    }
-    writer->WritesDone();
-    return writer->Finish();
+    return upload_file_chunks<v1::CheckpointChunk>(
+        stub.UploadCheckpoint(&context, &response), written.path, "checkpoint file",
+        [&](v1::CheckpointChunk& chunk) {
+          *chunk.mutable_lease() = lease;
+          chunk.mutable_info()->set_time_step(written.time_step);
+          chunk.mutable_info()->set_last_sample_index(written.last_sample_index);
+        });
   });
   if (!status.ok()) return Status(StatusCode::kInternal, "checkpoint upload: " + status.error_message());
   return {};

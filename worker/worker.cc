@@ -14,6 +14,7 @@
 #include "io/xdmf.h"
 #include "rpc/rpc.h"
 #include "worker/checkpoints.h"
+#include "worker/file_upload.h"
 #include "worker/job_runner.h"
 #include "worker/reporter.h"
 
@@ -393,30 +394,12 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
 
   auto upload_part = [&](grpc::ClientContext& context, const fs::path& path,
                          v1::ResultPart part) -> grpc::Status {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return {grpc::StatusCode::NOT_FOUND, "no result file"};
     v1::UploadResultResponse response;
-    auto writer = stub_->UploadResult(&context, &response);
-    std::vector<char> buffer(1 << 20);
-    std::int64_t offset = 0;
-    bool first = true;
-    while (in || first) {
-      in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-      const std::streamsize n = in.gcount();
-      if (n == 0 && !first) break;
-      v1::UploadChunk chunk;
-      if (first) {
-        *chunk.mutable_lease() = lease;
-        chunk.set_part(part);
-      }
-      first = false;
-      chunk.set_offset(offset);
-      chunk.set_data(buffer.data(), static_cast<std::size_t>(n));
-      if (!writer->Write(chunk)) break;
-      offset += n;
-    }
-    writer->WritesDone();
-    return writer->Finish();
+    return upload_file_chunks<v1::UploadChunk>(stub_->UploadResult(&context, &response), path, "result file",
+                                               [&](v1::UploadChunk& chunk) {
+                                                 *chunk.mutable_lease() = lease;
+                                                 chunk.set_part(part);
+                                               });
   };
   // The sidecar first: the HDF5 upload is what FinishJob waits for, and the
   // server adopts the sidecar with it. A lost sidecar only costs the download.

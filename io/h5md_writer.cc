@@ -298,19 +298,31 @@ Status H5mdWriter::write_string(std::string_view path, std::string_view value) {
   return write_string_dataset(impl_->file.get(), std::string(path), value).status();
 }
 
+namespace {
+
+// One scalar dataset of `file_type` at `name`, intermediate groups created;
+// the dataset, or an invalid handle when creating or writing it failed.
+Handle write_scalar_dataset(hid_t file, const std::string& name, hid_t file_type, hid_t memory_type,
+                            const void* value) {
+  Handle space(H5Screate(H5S_SCALAR));
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
+  H5Pset_create_intermediate_group(lcpl.get(), 1);
+  Handle dataset(
+      H5Dcreate2(file, name.c_str(), file_type, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
+  if (!dataset.valid() || H5Dwrite(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, value) < 0)
+    return Handle();
+  return dataset;
+}
+
+}  // namespace
+
 Status H5mdWriter::write_scalar(std::string_view path, double value, std::string_view unit) {
   if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
   const hid_t file = impl_->file.get();
   const std::string name(path);
   if (path_exists(file, name)) return {StatusCode::kFailedPrecondition, name + " already written"};
-  Handle space(H5Screate(H5S_SCALAR));
-  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
-  H5Pset_create_intermediate_group(lcpl.get(), 1);
-  Handle dataset(
-      H5Dcreate2(file, name.c_str(), H5T_IEEE_F64LE, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
-  if (!dataset.valid() ||
-      H5Dwrite(dataset.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0)
-    return h5_error("writing " + name, path_);
+  Handle dataset = write_scalar_dataset(file, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
+  if (!dataset.valid()) return h5_error("writing " + name, path_);
   if (!unit.empty()) return write_string_attribute(dataset.get(), "unit", unit);
   return {};
 }
@@ -320,13 +332,7 @@ Status H5mdWriter::write_integer(std::string_view path, std::int64_t value) {
   const hid_t file = impl_->file.get();
   const std::string name(path);
   if (path_exists(file, name)) return {StatusCode::kFailedPrecondition, name + " already written"};
-  Handle space(H5Screate(H5S_SCALAR));
-  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
-  H5Pset_create_intermediate_group(lcpl.get(), 1);
-  Handle dataset(
-      H5Dcreate2(file, name.c_str(), H5T_STD_I64LE, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
-  if (!dataset.valid() ||
-      H5Dwrite(dataset.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0)
+  if (!write_scalar_dataset(file, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &value).valid())
     return h5_error("writing " + name, path_);
   return {};
 }

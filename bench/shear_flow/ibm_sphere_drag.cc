@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/shear_flow/key_value_args.h"
 #include "physics/core/passive_threads.h"
 #include "physics/coupling/sphere_drag.h"
 #include "physics/mesh/sphere_mesh.h"
@@ -17,20 +18,10 @@
 int main(int argc, char** argv) {
   cellflow::ensure_passive_openmp_wait(argv);
   using namespace cellflow;
-  std::map<std::string, std::string> args;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    const auto eq = a.find('=');
-    if (eq == std::string::npos) {
-      std::fprintf(stderr, "argument '%s' is not key=value\n", a.c_str());
-      return 2;
-    }
-    args[a.substr(0, eq)] = a.substr(eq + 1);
-  }
-  auto get = [&](const char* key, double fallback) {
-    const auto it = args.find(key);
-    return it == args.end() ? fallback : std::atof(it->second.c_str());
-  };
+  std::optional<std::map<std::string, std::string>> parsed = bench::parse_key_value_args(argc, argv);
+  if (!parsed) return 2;
+  std::map<std::string, std::string>& args = *parsed;
+  auto get = [&](const char* key, double fallback) { return bench::number_arg(args, key, fallback); };
   const double cpr = get("cpr", 6.0);
   const double shrink = get("shrink", 0.0);
   mesh::SphereMeshOptions mo;

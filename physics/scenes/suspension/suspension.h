@@ -1,0 +1,186 @@
+// Suspension scene (paper section 7.2): N tetrahedral Mooney-Rivlin cells in
+// plane Couette flow between walls at y = 0 and y = H, periodic in x and z,
+// coupled to one D3Q19 lattice-Boltzmann fluid by the immersed-boundary
+// method (physics/coupling), as the single-cell scene (shear_flow.h) does for
+// one cell. On top of it:
+//   - placement: cells of several kinds (radius, material, viscosity ratio)
+//     at random non-overlapping positions and orientations (seeded), or at
+//     given places; a volume fraction gives N from the box;
+//   - contact: a short-range repulsion between surface vertices of different
+//     cells and between surface vertices and the walls, found through a cell
+//     list, so its cost grows linearly with the vertex count;
+//   - viscosity contrast: nodes inside a cell with viscosity_ratio != 1 relax
+//     with the inner viscosity (marked from the moving meshes);
+//   - observables: per-cell and mean Taylor deformation, inclination and net
+//     strain; the relative viscosity from the mean wall shear stress over the
+//     cell-free value; time averages after a transient with block-averaged
+//     standard errors; contact counts.
+//
+// SI at this interface; lattice units only inside, converted through
+// physics/units. This header is the contract between the scene (physics)
+// and its job (jobs/suspension); fields may be added, none removed.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "physics/cell/cell_params.h"
+#include "physics/core/status.h"
+#include "physics/core/violations.h"
+#include "physics/mesh/tet_mesh.h"
+#include "physics/scenes/shear_flow/shear_flow.h"
+#include "physics/units/units.h"
+
+namespace cellflow::scenes {
+
+// A centre (box coordinates, metres) and a rotation vector (axis x angle,
+// radians) of the cell's mesh about its centre.
+struct CellPlacement {
+  std::array<double, 3> centre_m{};
+  std::array<double, 3> rotation_rad{};
+};
+
+// Default mesh of a suspended cell (smaller than the single-cell default:
+// N cells share the step).
+inline constexpr int kSuspensionDefaultVertexCount = 1000;
+
+// One kind of cell; exactly one of count > 0, volume_fraction > 0 or
+// placements non-empty.
+struct SuspendedCellKind {
+  cell::CellParams cell;         // target_vertex_count default kSuspensionDefaultVertexCount
+  double viscosity_ratio = 1.0;  // lambda = eta_in / eta_out in [0.01, 100]
+  int count = 0;
+  double volume_fraction = 0.0;  // N = round(phi V_box / (4/3 pi R^3)), in (0, 0.5]
+  std::vector<CellPlacement> placements;
+};
+
+struct SuspensionNumerics {
+  // Lattice, time step, sampling, stopping (shear_flow.h). Suspension
+  // defaults: box 5 x 8 x 4 radii of the first kind, steady_tolerance 0,
+  // max_strain 20 (suspension_numerics_defaults()).
+  ShearFlowNumerics flow;
+  std::uint64_t seed = 1;
+  double contact_range_dx = 1.0;       // repulsion range, lattice spacings, (0, 4]
+  double contact_strength = 1.0;       // at zero gap, x mu dx^2 of the cell, (0, 1e3]
+  double average_after_strain = 5.0;   // time averages start here, >= 0
+  double target_standard_error = 0.0;  // > 0: stop at this relative SE of mean D; 0 off
+  int marking_every_steps = 1;         // [1, 1000]
+  double min_gap_dx = 1.0;             // placement gap, lattice spacings, [0, 10]
+};
+SuspensionNumerics suspension_numerics_defaults();
+
+struct SuspensionParams {
+  std::vector<SuspendedCellKind> kinds;  // 1 ... 64 kinds
+  double fluid_density_kg_m3 = units::kWaterDensityKgM3;
+  double fluid_viscosity_pa_s = units::kWaterViscosityPaS;
+  // Exactly one drives the flow; Ca = eta gammadot / mu of the first kind.
+  double shear_rate_per_s = 0.0;
+  double capillary_number = 0.0;
+  SuspensionNumerics numerics = suspension_numerics_defaults();
+};
+
+// Every field out of range, named relative to the params
+// ("kinds[1].viscosity_ratio", "numerics.contact_range_dx",
+// "kinds[0].placements[3]" for an overlapping or outside place) with its
+// allowed range. Does not mesh or place.
+Violations violations(const SuspensionParams& params);
+Status validate(const SuspensionParams& params, std::string_view field_prefix = "suspension.");
+
+struct SuspensionSetup {
+  ShearFlowSetup flow;  // lattice, time step, Ca, Re of the first kind
+  int cell_count = 0;
+  double volume_fraction = 0.0;  // sum of cell volumes / box volume
+  std::size_t memory_bytes = 0;  // lattice + every cell's mesh, body and coupling state
+};
+
+// A run whose parameters plan_suspension_run validated, planned and placed.
+class PlannedSuspension {
+ public:
+  const SuspensionParams& params() const { return params_; }
+  const SuspensionSetup& setup() const { return setup_; }
+  const units::Units& units() const { return units_; }
+  // Per cell, in the suspension's order (kinds in order, cells of a kind in
+  // order): its kind and its place.
+  const std::vector<int>& cell_kinds() const { return cell_kinds_; }
+  const std::vector<CellPlacement>& placements() const { return placements_; }
+  void set_threads(int threads);
+
+ private:
+  friend StatusOr<PlannedSuspension> plan_suspension_run(const SuspensionParams& params,
+                                                         std::string_view field_prefix);
+  PlannedSuspension() = default;
+  SuspensionParams params_;
+  SuspensionSetup setup_;
+  units::Units units_;
+  std::vector<int> cell_kinds_;
+  std::vector<CellPlacement> placements_;
+};
+
+// validate + units + Mach + memory + placement (random placement is done
+// here, reproducibly from numerics.seed; "kinds[0].volume_fraction" names a
+// fraction that cannot be placed). No lattice is allocated.
+StatusOr<PlannedSuspension> plan_suspension_run(const SuspensionParams& params,
+                                                std::string_view field_prefix = "suspension.");
+
+struct SuspendedCellSample {
+  double taylor_deformation = 0.0;  // D (paper eq. 13)
+  double inclination_deg = 0.0;
+  double net_strain = 0.0;  // (d_max - 2R) / 2R (paper eq. 18)
+  std::array<double, 3> semi_axes_m{};
+  std::array<double, 3> centroid_m{};  // box coordinates (x, z unwrapped)
+  double volume_m3 = 0.0;
+};
+
+struct SuspensionSample {
+  int index = 0;
+  std::int64_t time_step = 0;
+  double time_s = 0.0;
+  double strain_units = 0.0;
+  std::vector<SuspendedCellSample> cells;  // every cell, in order
+  double mean_taylor_deformation = 0.0;
+  double mean_inclination_deg = 0.0;
+  double relative_viscosity = 0.0;  // mean wall shear stress / cell-free value
+  int contact_pairs = 0;            // cell pairs with a vertex pair in repulsion range
+  // Averages since numerics.average_after_strain (0 before), block-averaged SE.
+  double average_taylor_deformation = 0.0;
+  double average_taylor_deformation_error = 0.0;
+  double average_relative_viscosity = 0.0;
+  double average_relative_viscosity_error = 0.0;
+};
+
+struct SuspensionCallbacks {
+  std::function<void(const SuspensionSample&)> on_sample;
+  std::function<void(double fraction_done)> on_progress;
+  std::function<bool()> should_stop;
+  // Once: the mesh of every kind (reference positions centred at the origin).
+  std::function<void(std::span<const mesh::TetMesh> kind_meshes)> on_meshes;
+  // At each snapshot: every cell's current positions (box coordinates, m).
+  std::function<void(int index, double time_s, int cell, std::span<const double> positions_m)> on_positions;
+  std::function<void(const FluidVelocitySnapshot&)> on_fluid_velocity;
+};
+
+struct SuspensionResult {
+  Status status;
+  ShearFlowStop stop = ShearFlowStop::kFailed;
+  SuspensionSetup setup;
+  std::vector<SuspensionSample> samples;
+  double average_taylor_deformation = 0.0, average_taylor_deformation_error = 0.0;
+  double average_relative_viscosity = 0.0, average_relative_viscosity_error = 0.0;
+  int max_contact_pairs = 0;
+  std::vector<std::string> warnings;
+  std::int64_t time_steps = 0;
+  double wall_time_s = 0.0;
+  // Wall time split (seconds): LB, elastic forces, spreading + interpolation,
+  // contact search and forces, marking, observables.
+  double lattice_s = 0.0, elastic_s = 0.0, coupling_s = 0.0, contact_s = 0.0, marking_s = 0.0,
+         observables_s = 0.0;
+};
+
+SuspensionResult run_suspension(const PlannedSuspension& planned, const SuspensionCallbacks& callbacks = {});
+
+}  // namespace cellflow::scenes

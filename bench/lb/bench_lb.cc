@@ -33,6 +33,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -85,7 +86,9 @@ double median(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
-void BM_LbStep(benchmark::State& state) {
+// with_phases: a phase field with a sphere of radius n/4 in phase 1 (tau
+// 0.525, lambda = 0.083 of tau 0.8), the viscosity-contrast kernel.
+void lb_step(benchmark::State& state, bool with_phases) {
   const int n = static_cast<int>(state.range(0));
   const bool single = state.range(1) == 1;
   const bool two_array = state.range(2) == 1;
@@ -101,12 +104,27 @@ void BM_LbStep(benchmark::State& state) {
   p.precision = single ? Precision::kFloat : Precision::kDouble;
   p.streaming = two_array ? Streaming::kTwoArray : Streaming::kAA;
   p.threads = threads;
+  if (with_phases) p.phase_taus = {0.525};
   StatusOr<Fluid> made = make_fluid(p);
   if (!made.ok()) {
     state.SkipWithError(made.status().message().c_str());
     return;
   }
   Fluid fluid = std::move(made).value();
+  if (with_phases) {
+    std::vector<std::uint8_t> phases(fluid.num_nodes(), 0);
+    const double c = 0.5 * n, r2 = 0.0625 * n * n;
+    for (int k = 0; k < n; ++k)
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+          const double x = i + 0.5 - c, y = j + 0.5 - c, z = k + 0.5 - c;
+          if (x * x + y * y + z * z < r2) phases[fluid.node(i, j, k)] = 1;
+        }
+    if (Status s = set_phases(fluid, phases); !s.ok()) {
+      state.SkipWithError(s.message().c_str());
+      return;
+    }
+  }
   collide_stream(fluid);  // touch every page once before timing
   collide_stream(fluid);
   bandwidth_sample(threads);
@@ -143,6 +161,15 @@ void BM_LbStep(benchmark::State& state) {
   state.SetLabel(simd_name(best_simd()));
 }
 
+void BM_LbStep(benchmark::State& state) {
+  lb_step(state, false);
+}
+
+// The same with the per-node phase field (viscosity contrast).
+void BM_LbStepPhases(benchmark::State& state) {
+  lb_step(state, true);
+}
+
 // n, precision, scheme, coupled, threads
 BENCHMARK(BM_LbStep)
     ->ArgNames({"n", "float", "two_array", "coupled", "threads"})
@@ -154,6 +181,13 @@ BENCHMARK(BM_LbStep)
 BENCHMARK(BM_LbStep)
     ->ArgNames({"n", "float", "two_array", "coupled", "threads"})
     ->ArgsProduct({{32}, {0, 1}, {0}, {0}, {1}})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+// Viscosity contrast: the phase-field kernel beside BM_LbStep's.
+BENCHMARK(BM_LbStepPhases)
+    ->ArgNames({"n", "float", "two_array", "coupled", "threads"})
+    ->ArgsProduct({{128}, {0, 1}, {0}, {1}, {1}})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 

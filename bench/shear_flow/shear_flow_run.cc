@@ -4,6 +4,7 @@
 //                  float=1 kernel=peskin4 max_strain=40 tol=2e-3 window=2
 //                  sample=0.1 nu=0.48 threads=0 every=1 ratio=2 offset=0.5
 //                  checkpoint=PATH checkpoint_every_s=300 resume=PATH
+//                  lambda=1 marking_every=0
 // checkpoint=PATH writes a checkpoint at the first sample after each
 // checkpoint_every_s of wall time (0: at every sample) and prints its cost
 // against the time step; resume=PATH resumes from one.
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   p.cell.material.poisson_ratio = get("nu", 0.48);
   p.cell.target_vertex_count = static_cast<int>(get("vertices", scenes::kFlowDefaultVertexCount));
   p.capillary_number = get("ca", 0.2);
+  p.viscosity_ratio = get("lambda", 1.0);
   scenes::ShearFlowNumerics& n = p.numerics;
   n.cells_per_radius = get("cpr", n.cells_per_radius);
   if (args.count("box")) {
@@ -57,6 +59,7 @@ int main(int argc, char** argv) {
   n.max_stiffness_ratio = get("ratio", n.max_stiffness_ratio);
   n.hydrodynamic_radius_offset = get("offset", n.hydrodynamic_radius_offset);
   n.threads = static_cast<int>(get("threads", 0));
+  n.marking_every_steps = static_cast<int>(get("marking_every", 0));
   const int every = static_cast<int>(get("every", 10));
   scenes::ShearFlowCallbacks cb;
   cb.on_sample = [&](const scenes::ShearFlowSample& s) {
@@ -113,6 +116,12 @@ int main(int argc, char** argv) {
       scenes::small_ca_taylor_deformation(s.capillary_number),
       scenes::small_ca_inclination_deg_lambda1(s.capillary_number));
   std::printf("thickness / kernel %.2f\n", r.thickness_over_kernel);
+  std::printf(
+      "lambda %.4g tau_in %.4g marking: %lld updates (%lld exact) %.2f s = %.3f ms/step, %lld nodes inside\n",
+      s.viscosity_ratio, s.inner_relaxation_time, static_cast<long long>(r.marking_updates),
+      static_cast<long long>(r.marking_full), r.marking_s,
+      1e3 * r.marking_s / static_cast<double>(std::max<std::int64_t>(r.time_steps, 1)),
+      static_cast<long long>(r.marked_nodes));
   if (r.resumed_from_step >= 0)
     std::printf("resumed after step %lld\n", static_cast<long long>(r.resumed_from_step));
   if (!r.resume_refused.empty()) std::printf("resume refused: %s\n", r.resume_refused.c_str());

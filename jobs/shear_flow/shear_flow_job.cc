@@ -96,6 +96,8 @@ class FlowRecorder : public ResultRecorder {
     keep(writer_->write_integer("/parameters/setup/nz", setup_.nz));
     put("wall_speed_m_per_s", setup_.wall_speed_m_per_s, "m s-1");
     put("mach_number", setup_.mach_number, "");
+    put("viscosity_ratio", setup_.viscosity_ratio, "");
+    put("inner_relaxation_time", setup_.inner_relaxation_time, "");
     keep(writer_->flush());
   }
 
@@ -117,6 +119,9 @@ class FlowRecorder : public ResultRecorder {
       put("mesh_spacing_over_dx", result.mesh_spacing_over_dx, "");
       put("thickness_over_kernel", result.thickness_over_kernel, "");
       keep(writer_->write_integer("/summary/time_steps", result.time_steps));
+      // Viscosity contrast: the marking updates run (0 for lambda = 1) and the nodes inside at the end.
+      keep(writer_->write_integer("/summary/marking_updates", result.marking_updates));
+      keep(writer_->write_integer("/summary/marked_nodes", result.marked_nodes));
       put("wall_time_s", result.wall_time_s, "s");
     }
     std::string warnings;
@@ -285,10 +290,11 @@ class ShearFlowJob final : public PreparedJob {
       char line[300];
       std::snprintf(
           line, sizeof(line),
-          "stopped: %s after %lld steps (%.1f s); Ca %.4g, steady D %.5f (5/4 Ca = %.5f), "
+          "stopped: %s after %lld steps (%.1f s); Ca %.4g, lambda %.4g, steady D %.5f (5/4 Ca = %.5f), "
           "inclination %.2f deg\n",
           std::string(scenes::stop_name(result.stop)).c_str(), static_cast<long long>(result.time_steps),
-          result.wall_time_s, result.setup.capillary_number, result.steady_taylor_deformation,
+          result.wall_time_s, result.setup.capillary_number, result.setup.viscosity_ratio,
+          result.steady_taylor_deformation,
           scenes::small_ca_taylor_deformation(result.setup.capillary_number), result.steady_inclination_deg);
       *sink.progress << line;
       for (const std::string& w : result.warnings) *sink.progress << "warning: " << w << '\n';

@@ -32,6 +32,9 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
                               "capillary_number (> 0)");
   }
 
+  // Unset: 1 (no contrast, nothing marked); the range is checked by validate().
+  if (spec.has_viscosity_ratio()) params.viscosity_ratio = spec.viscosity_ratio();
+
   const v1::ShearFlowNumerics& in = spec.numerics();
   scenes::ShearFlowNumerics& n = params.numerics;  // holds the defaults
   if (in.has_cells_per_radius()) n.cells_per_radius = in.cells_per_radius();

@@ -33,7 +33,8 @@ struct CollisionCoeffs {
 };
 
 // Per-phase coefficients (viscosity contrast): entry p for the nodes of
-// phase p, 256 entries so that any byte indexes inside the table.
+// phase p, 256 entries so that any byte indexes inside the table. The row
+// kernels collide each run of one phase with its entry (stream_kernel.h).
 template <class T>
 struct PhaseTable {
   alignas(64) T omega_plus[256];
@@ -86,9 +87,8 @@ CELLFLOW_LB_INLINE void relax_pair(T& hi, T& hj, T drho, T rho, T ux, T uy, T uz
 // Collides n consecutive nodes: reads h_i from in[i][x], writes h_i* to
 // out[i][x] (in and out may alias node by node), the density to rho_out[x]
 // and, if kVelocityOut, the velocity. Body force = uniform + field (if
-// kForceField). kPhases: node x relaxes with the coefficients of
-// table[phase[x]] instead of k's (which then give only the uniform force).
-template <class T, bool kForceField, bool kVelocityOut, bool kPhases = false>
+// kForceField).
+template <class T, bool kForceField, bool kVelocityOut>
 CELLFLOW_LB_INLINE void collide_run(const T* const* in, T* const* out, int n, const T* __restrict fxf,
                                     const T* __restrict fyf, const T* __restrict fzf, T* __restrict uxo,
                                     T* __restrict uyo, T* __restrict uzo, T* __restrict rho_out,
@@ -133,14 +133,7 @@ CELLFLOW_LB_INLINE void collide_run(const T* const* in, T* const* out, int n, co
     rho_out[x] = rho;
     const T usq15 = T(1.5) * (ux * ux + uy * uy + uz * uz);
     const T uf3 = T(3) * (ux * fx + uy * fy + uz * fz);
-    T op = k.omega_plus, om = k.omega_minus, fp = k.force_plus, fm = k.force_minus;
-    if constexpr (kPhases) {
-      const int ph = phase[x];
-      op = table->omega_plus[ph];
-      om = table->omega_minus[ph];
-      fp = table->force_plus[ph];
-      fm = table->force_minus[ph];
-    }
+    const T op = k.omega_plus, om = k.omega_minus, fp = k.force_plus, fm = k.force_minus;
     // rest population: only the symmetric part relaxes; S_0 = -3 w_0 u.F
     constexpr T w0 = static_cast<T>(kWeight[0]);
     h0 = h0 - op * (h0 - w0 * (drho - rho * usq15)) - fp * w0 * uf3;

@@ -32,10 +32,10 @@
 // Lambda) and its own Guo forcing factors (1 - omega/2). The velocity
 // u = (sum f c + F/2) / rho and the density do not depend on tau (Guo 2002),
 // so the moments need no phase. Without phase_taus the kernels are exactly
-// those of a single tau (no phase field read). A phase table lookup (1 byte
-// per node read, 4 coefficients gathered from a table of at most 256 entries)
-// costs less memory traffic than a per-node relaxation time (8 bytes) and
-// needs no per-node division for tau_minus.
+// those of a single tau (no phase field read). With it each run of a row is
+// cut into segments of one phase, each collided with its tau's coefficients
+// as scalars (the one-tau kernel): a per-node gather of coefficients from a
+// table, tried first, made the step 1.8x slower (bench_lb BM_LbStepPhases).
 //
 // Coupling. A force-density field (3 arrays) and a velocity field (3 arrays),
 // both in the storage precision, can be allocated. collide_stream adds the

@@ -70,13 +70,43 @@ struct StepContext {
   const T* wall_term(int y) const { return y < 0 ? wall.lower : wall.upper; }
 };
 
+// kPh: the run is cut into segments of consecutive nodes of one phase p
+// (one segment for every run outside the cells and most inside), each
+// collided with p's coefficients as scalars: the kernel of one tau, vectorised
+// as without phases, and no per-node gather of coefficients (measured 1.8x
+// the step time on a 128^3 lattice with a sphere of radius 32, bench_lb).
 template <class T, bool kForce, bool kVel, bool kPh>
 CELLFLOW_LB_INLINE void collide(const StepContext<T>& c, const T* const* in, T* const* out, int n,
                                 std::size_t at, T* rho) {
-  detail::collide_run<T, kForce, kVel, kPh>(
-      in, out, n, kForce ? c.fx + at : nullptr, kForce ? c.fy + at : nullptr, kForce ? c.fz + at : nullptr,
-      kVel ? c.ux + at : nullptr, kVel ? c.uy + at : nullptr, kVel ? c.uz + at : nullptr, rho, c.k,
-      kPh ? c.phase + at : nullptr, c.table);
+  if constexpr (kPh) {
+    const std::uint8_t* ph = c.phase + at;
+    detail::CollisionCoeffs<T> k = c.k;
+    for (int s = 0; s < n;) {
+      const std::uint8_t p = ph[s];
+      int e = s + 1;
+      while (e < n && ph[e] == p) ++e;
+      k.omega_plus = c.table->omega_plus[p];
+      k.omega_minus = c.table->omega_minus[p];
+      k.force_plus = c.table->force_plus[p];
+      k.force_minus = c.table->force_minus[p];
+      const T* in_s[kQ];
+      T* out_s[kQ];
+      for (int q = 0; q < kQ; ++q) {
+        in_s[q] = in[q] + s;
+        out_s[q] = out[q] + s;
+      }
+      const std::size_t a = at + static_cast<std::size_t>(s);
+      detail::collide_run<T, kForce, kVel>(in_s, out_s, e - s, kForce ? c.fx + a : nullptr,
+                                           kForce ? c.fy + a : nullptr, kForce ? c.fz + a : nullptr,
+                                           kVel ? c.ux + a : nullptr, kVel ? c.uy + a : nullptr,
+                                           kVel ? c.uz + a : nullptr, rho + s, k);
+      s = e;
+    }
+  } else {
+    detail::collide_run<T, kForce, kVel>(
+        in, out, n, kForce ? c.fx + at : nullptr, kForce ? c.fy + at : nullptr, kForce ? c.fz + at : nullptr,
+        kVel ? c.ux + at : nullptr, kVel ? c.uy + at : nullptr, kVel ? c.uz + at : nullptr, rho, c.k);
+  }
 }
 
 // AA even step: purely local. Reads f_i(x) from slot i, writes f*_i(x) to slot

@@ -140,6 +140,29 @@ TEST_F(ShearFlowCheckpoint, ResumedRunIsBitIdenticalToTheUninterruptedRun) {
   }
 }
 
+// Viscosity contrast: the marking is not in the checkpoint; the resumed run
+// re-marks the restored positions exactly at the checkpoint's step (a
+// marking step) and continues bit for bit.
+TEST_F(ShearFlowCheckpoint, ResumedRunWithViscosityContrastIsBitIdentical) {
+  ShearFlowParams p = tiny_params();
+  p.viscosity_ratio = 0.05;
+  const Outcome fresh = run(p, 0, "");
+  ASSERT_TRUE(fresh.result.status.ok()) << fresh.result.status.to_string();
+  ASSERT_GT(fresh.result.marking_updates, 0);
+  const Outcome writer = run(p, 5, path_);
+  ASSERT_EQ(writer.written.size(), 1u);
+  ASSERT_TRUE(writer.written[0].status.ok()) << writer.written[0].status.to_string();
+  const Outcome resumed = run(p, 0, "", path_);
+  ASSERT_TRUE(resumed.result.status.ok()) << resumed.result.status.to_string();
+  EXPECT_TRUE(resumed.result.resume_refused.empty()) << resumed.result.resume_refused;
+  EXPECT_EQ(resumed.result.resumed_from_step, writer.written[0].time_step);
+  expect_same_samples(fresh.result, resumed.result);
+  EXPECT_EQ(resumed.result.marking_updates, fresh.result.marking_updates);
+  EXPECT_EQ(resumed.result.marked_nodes, fresh.result.marked_nodes);
+  ASSERT_EQ(resumed.frames.size(), fresh.frames.size());
+  EXPECT_EQ(resumed.frames.back(), fresh.frames.back());
+}
+
 // A stop that keeps the work (a worker handing its job back) goes on to the
 // next sample step, checkpoints there and stops; the resumed run is again
 // bit-identical. A cancel (checkpoint_before_stop false) stops at once.

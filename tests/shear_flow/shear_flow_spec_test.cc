@@ -43,6 +43,15 @@ TEST(ShearFlowSpec, DefaultsOfUnsetFields) {
   EXPECT_EQ(p->numerics.single_precision, defaults.numerics.single_precision);
   EXPECT_DOUBLE_EQ(p->numerics.max_strain, defaults.numerics.max_strain);
   EXPECT_EQ(p->numerics.volumetric, elastic::VolumetricTerm::kPerTet);
+  EXPECT_DOUBLE_EQ(p->viscosity_ratio, 1.0);
+}
+
+TEST(ShearFlowSpec, ViscosityRatioIsField7) {
+  v1::ShearFlowSpec spec = valid_spec();
+  spec.set_viscosity_ratio(0.05);
+  const StatusOr<scenes::ShearFlowParams> p = to_params(spec);
+  ASSERT_TRUE(p.ok()) << p.status().to_string();
+  EXPECT_DOUBLE_EQ(p->viscosity_ratio, 0.05);
 }
 
 TEST(ShearFlowSpec, MapsEverySetField) {
@@ -143,6 +152,10 @@ TEST(ShearFlowSpec, RefusalsNameTheField) {
        "shear_flow.fluid_density_kg_m3"},
       {"viscosity", [](v1::ShearFlowSpec& s) { s.set_fluid_viscosity_pa_s(-1e-3); },
        StatusCode::kInvalidArgument, "shear_flow.fluid_viscosity_pa_s"},
+      {"zero viscosity ratio", [](v1::ShearFlowSpec& s) { s.set_viscosity_ratio(0.0); },
+       StatusCode::kInvalidArgument, "shear_flow.viscosity_ratio"},
+      {"negative viscosity ratio", [](v1::ShearFlowSpec& s) { s.set_viscosity_ratio(-0.5); },
+       StatusCode::kInvalidArgument, "shear_flow.viscosity_ratio"},
       {"no drive", [](v1::ShearFlowSpec& s) { s.clear_drive(); }, StatusCode::kInvalidArgument,
        "shear_flow.capillary_number"},
       {"zero shear rate", [](v1::ShearFlowSpec& s) { s.set_shear_rate_per_s(0.0); },

@@ -19,6 +19,7 @@
 #include "physics/elastic/elastic_body.h"
 #include "physics/elastic/material.h"
 #include "physics/lb/fluid.h"
+#include "physics/marking/marking.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
@@ -31,6 +32,10 @@ namespace cellflow::scenes {
 using namespace shear_flow_detail;
 
 namespace {
+
+// Every this many marking updates the cell is re-marked by the exact test
+// (a check of the band update; the displacement fallback covers the rest).
+constexpr int kFullMarkingEveryUpdates = 200;
 
 // A vertex faster than this (lattice units, Mach 0.35) means the explicit
 // coupling has gone unstable; the flow itself never exceeds u_wall.
@@ -116,6 +121,36 @@ Schedule schedule_of(const Run& run) {
   }
   schedule.max_steps = static_cast<std::int64_t>(std::min(max_steps_real, kMaxSteps));
   return schedule;
+}
+
+std::int64_t marking_interval(const ShearFlowNumerics& n, double wall_speed_lattice,
+                              std::int64_t sample_steps) {
+  std::int64_t wanted = n.marking_every_steps;
+  if (wanted <= 0) {
+    // The surface moves no faster than the walls: half the band per interval.
+    const double band = marking::MarkingParams{}.band_lattice;
+    const double speed = std::max(std::abs(wall_speed_lattice), 1e-12);
+    wanted = static_cast<std::int64_t>(std::min(1e6, std::floor(0.5 * band / speed)));
+  }
+  wanted = std::clamp<std::int64_t>(wanted, 1, std::max<std::int64_t>(1, sample_steps));
+  // The largest divisor of the sample interval not above it: checkpoints
+  // (at sample steps) then fall on marking steps.
+  for (std::int64_t d = wanted; d > 1; --d)
+    if (sample_steps % d == 0) return d;
+  return 1;
+}
+
+Status start_marking(Run& run, lb::Fluid& fluid, std::int64_t updates_so_far, ShearFlowResult& result) {
+  marking::MarkingParams mp;
+  mp.full_every_updates = kFullMarkingEveryUpdates;
+  StatusOr<marking::NodeMarking> made = marking::make_marking(run.cells, fluid, mp);
+  if (!made.ok()) return made.status();
+  run.marking = std::move(*made);
+  run.marking->set_update_count(updates_so_far);
+  const std::uint8_t phase_of_cell[1] = {1};
+  if (Status s = marking::apply_phases(*run.marking, phase_of_cell, fluid); !s.ok()) return s;
+  result.marking_updates = run.marking->stats().updates;
+  return Status::ok_status();
 }
 
 }  // namespace shear_flow_detail
@@ -282,6 +317,15 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t
         return;
       }
     }
+    // Viscosity contrast: the nodes inside the moved cell relax with tau_in.
+    if (run.marking && step % run.marking_every == 0) {
+      marking::update_marking(*run.marking, cells);
+      const std::uint8_t phase_of_cell[1] = {1};
+      if (Status s = marking::apply_phases(*run.marking, phase_of_cell, fluid); !s.ok()) {
+        fail(step, "marking: " + s.message());
+        return;
+      }
+    }
 
     if (step % sample_steps == 0) {
       const auto ts = Clock::now();
@@ -417,6 +461,9 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
   fp.velocity_field = true;
   fp.precision = n.single_precision ? lb::Precision::kFloat : lb::Precision::kDouble;
   fp.threads = n.threads;
+  // lambda != 1: phase 1 (the cell's inside) relaxes with tau_in.
+  const bool contrast = params.viscosity_ratio != 1.0;
+  if (contrast) fp.phase_taus = {setup.inner_relaxation_time};
   StatusOr<lb::Fluid> fluid = lb::make_fluid(fp);
   if (!fluid.ok()) {
     result.status = Status(fluid.status().code(), prefix + "numerics: " + fluid.status().message());
@@ -485,6 +532,17 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
       start_fluid();  // the populations may have been overwritten by the refused file
     }
   }
+  // The marking is not in the checkpoint: a resume re-marks the restored
+  // positions exactly. Checkpoints fall on marking steps, where the band
+  // update of the uninterrupted run equals the exact test on every node
+  // (tests/marking), so the resumed run continues bit for bit.
+  if (contrast) {
+    run.marking_every = marking_interval(n, u_wall_lb, schedule_of(run).sample_steps);
+    if (Status s = start_marking(run, *fluid, resume_step / run.marking_every, result); !s.ok()) {
+      result.status = Status(s.code(), prefix + "viscosity_ratio: " + s.message());
+      return result;
+    }
+  }
 
   if (n.single_precision) {
     time_loop<float>(run, *fluid, result, resume_step);
@@ -492,6 +550,13 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
     time_loop<double>(run, *fluid, result, resume_step);
   }
   summarise(run, result);
+  if (run.marking) {
+    const marking::MarkingStats& stats = run.marking->stats();
+    result.marking_updates = stats.updates;
+    result.marking_full = stats.full_markings;
+    result.marked_nodes = static_cast<std::int64_t>(run.marking->count_inside(0));
+    result.marking_s = stats.seconds;
+  }
   result.wall_time_s = seconds_since(wall_start);
   return result;
 }

@@ -11,9 +11,15 @@
 // transient of the fluid to wait for).
 //
 // Every vertex of the tetrahedral mesh (surface and interior) is an immersed-
-// boundary point; the fluid is not subtracted inside the cell, so the cell
-// interior has the fluid's viscosity (viscosity ratio lambda = 1, as in the
-// paper's standard case). One lattice time step:
+// boundary point; the fluid is not subtracted inside the cell. By default the
+// cell interior has the fluid's viscosity (viscosity ratio lambda = 1, the
+// paper's standard case) and no lattice node is marked. With viscosity_ratio
+// lambda != 1 the nodes inside the cell's surface (physics/marking) relax
+// with tau_in = 1/2 + lambda (tau - 1/2) (eta = rho c_s^2 (tau - 1/2) dt),
+// re-marked every numerics.marking_every_steps steps by the fast band test.
+// Stability of the lattice needs tau_in >= lb::kMinStableTau = 0.505: at the
+// default tau = 1, lambda >= 0.01 (lambda >= 0.005 / (tau - 1/2) in general).
+// One lattice time step:
 //   f = elastic forces at the vertices          (paper eq. 9-10)
 //   spread f onto the lattice (Peskin kernel), Guo forcing
 //   collide and stream                          (u(t) written on the way)
@@ -129,7 +135,17 @@ struct ShearFlowNumerics {
   // observable) keeps radius R.
   double hydrodynamic_radius_offset = -1.0;
   int threads = 0;  // OpenMP threads; 0 = OpenMP default
+  // Viscosity contrast (viscosity_ratio != 1): the fast marking runs every
+  // this many steps; 0 (default): the largest divisor of the sample interval
+  // at which the walls (the fastest fluid) move at most half the marking
+  // band. In [0, 1e6]. (A checkpoint falls on a marking step, so a resumed
+  // run re-marks exactly where the uninterrupted one marked.)
+  int marking_every_steps = 0;
 };
+
+// Allowed range of ShearFlowParams::viscosity_ratio (proto ShearFlowSpec
+// field 7), with tau_in = 1/2 + lambda (tau - 1/2) >= lb::kMinStableTau.
+inline constexpr double kMinViscosityRatio = 0.01, kMaxViscosityRatio = 100.0;
 
 struct ShearFlowParams {
   cell::CellParams cell = flow_cell_defaults();
@@ -140,6 +156,9 @@ struct ShearFlowParams {
   // cell material (mu1 + mu2), which then fixes gammadot.
   double shear_rate_per_s = 0.0;
   double capillary_number = 0.0;
+  // lambda = eta_inside / eta_outside (paper section 7), in
+  // [kMinViscosityRatio, kMaxViscosityRatio] with tau_in >= lb::kMinStableTau.
+  double viscosity_ratio = 1.0;
   ShearFlowNumerics numerics;
 };
 
@@ -179,15 +198,17 @@ struct ShearFlowSetup {
   double reynolds_number_physical = 0.0;   // rho gammadot R^2 / eta
   double reynolds_number_simulated = 0.0;  // with the simulated density
   double simulated_density_kg_m3 = 0.0;
-  double lattice_spacing_m = 0.0;   // dx
-  double time_step_s = 0.0;         // dt
-  int nx = 0, ny = 0, nz = 0;       // lattice nodes
-  double box_m[3] = {0, 0, 0};      // nx dx, ny dx (= H), nz dx
-  double wall_speed_m_per_s = 0.0;  // u_wall = H gammadot / 2
-  double mach_number = 0.0;         // u_wall / c_s
-  double shear_rate_lattice = 0.0;  // gammadot dt
-  double steps_per_strain = 0.0;    // 1 / (gammadot dt)
-  std::size_t lattice_bytes = 0;
+  double lattice_spacing_m = 0.0;      // dx
+  double time_step_s = 0.0;            // dt
+  int nx = 0, ny = 0, nz = 0;          // lattice nodes
+  double box_m[3] = {0, 0, 0};         // nx dx, ny dx (= H), nz dx
+  double wall_speed_m_per_s = 0.0;     // u_wall = H gammadot / 2
+  double mach_number = 0.0;            // u_wall / c_s
+  double shear_rate_lattice = 0.0;     // gammadot dt
+  double steps_per_strain = 0.0;       // 1 / (gammadot dt)
+  double viscosity_ratio = 1.0;        // lambda = eta_in / eta_out
+  double inner_relaxation_time = 0.0;  // tau_in = 1/2 + lambda (tau - 1/2); = tau for lambda = 1
+  std::size_t lattice_bytes = 0;       // with the phase field and the marking when lambda != 1
 };
 
 // validate + units + Mach + memory checks, no allocation: what a server
@@ -356,6 +377,14 @@ struct ShearFlowResult {
   // Wall time split (seconds): elastic forces, spreading + interpolation,
   // LB collide-stream, observables.
   double elastic_s = 0.0, coupling_s = 0.0, lattice_s = 0.0, observables_s = 0.0;
+  // Viscosity contrast: marking updates run (0 with lambda = 1: nothing is
+  // marked), exact markings among them (the first, fallbacks and resumes),
+  // the nodes inside the cell at the end, and the wall time of marking and
+  // phase writes (not in the four above).
+  std::int64_t marking_updates = 0;
+  std::int64_t marking_full = 0;
+  std::int64_t marked_nodes = 0;
+  double marking_s = 0.0;
 };
 
 // Runs the scene until D is steady, max_strain or max_time_s. Refuses up

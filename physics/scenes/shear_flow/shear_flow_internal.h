@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -14,6 +15,8 @@
 #include "physics/coupling/immersed_cell.h"
 #include "physics/elastic/elastic_body.h"
 #include "physics/elastic/material.h"
+#include "physics/lb/fluid.h"
+#include "physics/marking/marking.h"
 #include "physics/mesh/tet_mesh.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/units/units.h"
@@ -85,7 +88,20 @@ struct Run {
   int snapshot_index = 0;
   bool keep_snapshots = false;            // checkpoints are written: keep every snapshot
   std::vector<StoredSnapshot> snapshots;  // when keep_snapshots
+  // Viscosity contrast (viscosity_ratio != 1): the nodes inside the cell,
+  // re-marked every marking_every steps (a divisor of the sample interval).
+  std::optional<marking::NodeMarking> marking;
+  std::int64_t marking_every = 0;
 };
+
+// The marking interval of a run (numerics.marking_every_steps, or its
+// automatic value) for the plan's wall speed and the sample interval.
+std::int64_t marking_interval(const ShearFlowNumerics& n, double wall_speed_lattice,
+                              std::int64_t sample_steps);
+
+// Marks the cell's nodes exactly and writes the phases into the fluid (run
+// start and resume); `updates_so_far` aligns the marking's update count.
+Status start_marking(Run& run, lb::Fluid& fluid, std::int64_t updates_so_far, ShearFlowResult& result);
 
 // The schedule of the run's numerics and plan (shear_flow.cc).
 Schedule schedule_of(const Run& run);

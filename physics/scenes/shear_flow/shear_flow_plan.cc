@@ -6,6 +6,7 @@
 #include <string>
 #include <utility>
 
+#include "physics/lb/fluid.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/scenes/shear_flow/shear_flow_internal.h"
 #include "physics/units/units.h"
@@ -157,7 +158,15 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
     }
     return Status(s.code(), std::move(message));
   }
+  setup.viscosity_ratio = params.viscosity_ratio;
+  setup.inner_relaxation_time = lb::tau_for_viscosity_ratio(n.relaxation_time, params.viscosity_ratio);
   setup.lattice_bytes = units::estimate_lattice_bytes(setup.nx, setup.ny, setup.nz, n.single_precision);
+  if (params.viscosity_ratio != 1.0) {
+    // The phase field (1 byte a node), the marking's owner field (4) and the
+    // phases it writes through (1).
+    setup.lattice_bytes +=
+        6 * static_cast<std::size_t>(setup.nx) * setup.ny * static_cast<std::size_t>(setup.nz);
+  }
   if (Status s = units::check_memory(setup.lattice_bytes, n.memory_limit_bytes, numerics_prefix); !s.ok())
     return s;
   // The run's work: nodes x the steps up to max_strain (or max_time_s).
@@ -329,6 +338,26 @@ Violations violations(const ShearFlowParams& params) {
           "= " + number_text(n.max_stiffness_ratio, 6) + " must lie in [0, 100] (0: default)");
   }
   if (n.threads < 0) v.add("numerics.threads", "= " + std::to_string(n.threads) + " must be >= 0");
+  if (n.marking_every_steps < 0 || n.marking_every_steps > 1000000) {
+    v.add("numerics.marking_every_steps",
+          "= " + std::to_string(n.marking_every_steps) + " must lie in [0, 1e6]");
+  }
+  const double lambda = params.viscosity_ratio;
+  if (!positive_finite(lambda)) {
+    v.add("viscosity_ratio", "= " + number_text(lambda, 6) + " must be > 0 and finite");
+  } else if (!(lambda >= kMinViscosityRatio && lambda <= kMaxViscosityRatio)) {
+    v.add_value("viscosity_ratio", lambda, "lie in " + interval(kMinViscosityRatio, kMaxViscosityRatio));
+  } else if (n.relaxation_time > 0.5 && std::isfinite(n.relaxation_time) && lambda != 1.0 &&
+             !(lb::tau_for_viscosity_ratio(n.relaxation_time, lambda) >= lb::kMinStableTau)) {
+    // tau_in = 1/2 + lambda (tau - 1/2) >= 0.505
+    v.add("viscosity_ratio",
+          "= " + number_text(lambda, 6) + " gives the inner relaxation time " +
+              number_text(lb::tau_for_viscosity_ratio(n.relaxation_time, lambda), 6) + " below the stable " +
+              number_text(lb::kMinStableTau, 6) + ": at numerics.relaxation_time " +
+              number_text(n.relaxation_time, 6) +
+              " it must be >= " + number_text((lb::kMinStableTau - 0.5) / (n.relaxation_time - 0.5), 6) +
+              " (raise numerics.relaxation_time for a smaller ratio)");
+  }
   return v;
 }
 

@@ -58,9 +58,11 @@ ShearFlowResult run_ok(double ca, double lambda) {
   const ShearFlowResult r = run_shear_flow(params(ca, lambda));
   EXPECT_TRUE(r.status.ok()) << r.status.to_string();
   std::printf(
-      "[ measured ] Ca %.3g lambda %.3g: D %.5f inclination %.3f deg, %lld steps, marking %lld updates "
-      "(%lld exact) %.3f s of %.1f s, %lld nodes inside\n",
-      ca, lambda, r.steady_taylor_deformation, r.steady_inclination_deg, static_cast<long long>(r.time_steps),
+      "[ measured ] Ca %.3g lambda %.3g: D %.5f inclination %.3f deg (%s), %lld steps, lattice %.1f s, "
+      "marking "
+      "%lld updates (%lld exact) %.3f s, wall %.1f s, %lld nodes inside\n",
+      ca, lambda, r.steady_taylor_deformation, r.steady_inclination_deg,
+      std::string(stop_name(r.stop)).c_str(), static_cast<long long>(r.time_steps), r.lattice_s,
       static_cast<long long>(r.marking_updates), static_cast<long long>(r.marking_full), r.marking_s,
       r.wall_time_s, static_cast<long long>(r.marked_nodes));
   return r;

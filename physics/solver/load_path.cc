@@ -39,25 +39,30 @@ void LoadPath::push_out_of_obstacles(const contact::Obstacles& obstacles, std::v
   // range to half the mean depth of the vertices in contact. The penalty force
   // grows like s^2 inside the range, so a vertex left deep inside would cost
   // Newton one halving of its excess depth per iteration.
+  // Depths are compared as fractions of each law's range: a scene may narrow
+  // the range with the load (keeping k r), and then the same force sits at
+  // the same s / r.
   const std::span<const std::int32_t> vertices = solver_->contact_vertices();
   const std::size_t m = vertices.size();
   const double range = obstacles.penalty.range_m;
+  const contact::Obstacles current = obstacles_at(load_);
+  const double current_range = current.penalty.range_m;
   std::vector<double> gaps(m), normals(3 * m), current_gaps(m), current_normals(3 * m);
   contact::nearest_obstacle(obstacles, vertices, y.data(), gaps.data(), normals.data());
-  contact::nearest_obstacle(obstacles_at(load_), vertices, positions_.data(), current_gaps.data(),
+  contact::nearest_obstacle(current, vertices, positions_.data(), current_gaps.data(),
                             current_normals.data());
-  double depth_sum = 0.0;
+  double depth_sum = 0.0;  // in units of the current range
   int in_contact = 0;
   for (std::size_t k = 0; k < m; ++k) {
-    if (current_gaps[k] < range) {
-      depth_sum += range - current_gaps[k];
+    if (current_gaps[k] < current_range) {
+      depth_sum += 1.0 - current_gaps[k] / current_range;
       ++in_contact;
     }
   }
-  const double entry_depth = in_contact > 0 ? 0.5 * depth_sum / in_contact : 0.25 * range;
+  const double entry_depth = range * (in_contact > 0 ? 0.5 * depth_sum / in_contact : 0.25);
   for (std::size_t k = 0; k < m; ++k) {
     const double depth = range - gaps[k];
-    const double allowed = std::max(range - current_gaps[k], entry_depth);
+    const double allowed = std::max(range * (1.0 - current_gaps[k] / current_range), entry_depth);
     if (depth <= allowed) continue;
     double* yv = y.data() + 3 * static_cast<std::size_t>(vertices[k]);
     for (int a = 0; a < 3; ++a) yv[a] += (depth - allowed) * normals[3 * k + a];

@@ -33,7 +33,7 @@ TEST(JobSpec, DefaultsOfUnsetOptionalFields) {
   EXPECT_EQ(p->max_deformation, 0.5);
   EXPECT_EQ(p->load_points, 40);
   EXPECT_EQ(p->numerics.residual_tolerance, 1e-6);
-  EXPECT_EQ(p->numerics.max_newton_iterations, 40);
+  EXPECT_EQ(p->numerics.max_newton_iterations, 200);
   EXPECT_EQ(p->numerics.max_step_splits, 10);
   EXPECT_FALSE(p->numerics.contact_stiffness_n_per_m.has_value());
   EXPECT_FALSE(p->numerics.contact_range_m.has_value());

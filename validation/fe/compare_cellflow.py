@@ -109,7 +109,8 @@ def main():
         print(f"{name}: largest |error| {100 * abs(worst[1]):.2f} % at {worst[0] * scale:.3f}{unit}; "
               f"{status}; {seconds:.1f} s; max penetration {max(e[2] for e in errors):.2e} m")
         print("   " + "  ".join(f"{d * scale:.3g}: {100 * e:+.2f} %"
-                                for i, (d, e, _) in enumerate(errors) if i % 4 == 0 or i < 4))
+                                for i, (d, e, _) in enumerate(errors)
+                                if i % 4 == 0 or i < 4 or i == len(errors) - 1))
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -85,6 +86,11 @@ struct Run {
   int snapshot_index = 0;
   bool keep_snapshots = false;            // checkpoints are written: keep every snapshot
   std::vector<StoredSnapshot> snapshots;  // when keep_snapshots
+  // The thickness check (numerics.resolve_thickness): called with a sample
+  // whose 2 a1 / (kernel width dx) is below kMinThicknessOverKernel; true
+  // (a finer lattice was planned): this attempt ends for a restart there.
+  std::function<bool(const ShearFlowSample&, double thickness_over_kernel)> refine;
+  bool refine_requested = false;
 };
 
 // The schedule of the run's numerics and plan (shear_flow.cc).

@@ -3,8 +3,11 @@
 //   shear_flow_run ca=0.2 cpr=6 vertices=1000 box=10,15,5 re=0.1 tau=1
 //                  float=1 kernel=peskin4 max_strain=40 tol=2e-3 window=2
 //                  sample=0.1 nu=0.48 threads=0 every=1 ratio=2 offset=0.5
-//                  checkpoint=PATH checkpoint_every_s=300 resume=PATH
+//                  checkpoint=PATH checkpoint_every_s=300 resume=PATH rho=1000 resolve=1
 //                  lambda=1 marking_every=0
+// resolve=0 turns numerics.resolve_thickness off (the lattice of cpr, a
+// warning only); rho sets the fluid density (kg/m^3; the Reynolds number at
+// large Ca, where the physical one exceeds re).
 // checkpoint=PATH writes a checkpoint at the first sample after each
 // checkpoint_every_s of wall time (0: at every sample) and prints its cost
 // against the time step; resume=PATH resumes from one.
@@ -33,6 +36,7 @@ int main(int argc, char** argv) {
   p.cell.target_vertex_count = static_cast<int>(get("vertices", scenes::kFlowDefaultVertexCount));
   p.capillary_number = get("ca", 0.2);
   p.viscosity_ratio = get("lambda", 1.0);
+  p.fluid_density_kg_m3 = get("rho", p.fluid_density_kg_m3);
   scenes::ShearFlowNumerics& n = p.numerics;
   n.cells_per_radius = get("cpr", n.cells_per_radius);
   if (args.count("box")) {
@@ -60,6 +64,7 @@ int main(int argc, char** argv) {
   n.hydrodynamic_radius_offset = get("offset", n.hydrodynamic_radius_offset);
   n.threads = static_cast<int>(get("threads", 0));
   n.marking_every_steps = static_cast<int>(get("marking_every", 0));
+  n.resolve_thickness = get("resolve", n.resolve_thickness ? 1 : 0) != 0;
   const int every = static_cast<int>(get("every", 10));
   scenes::ShearFlowCallbacks cb;
   cb.on_sample = [&](const scenes::ShearFlowSample& s) {
@@ -68,6 +73,14 @@ int main(int argc, char** argv) {
         "%5d strain %7.3f D %.5f incl %6.2f net_strain %.4f a1 %.3g m tank_treading %.4g /s V %.6g m3\n",
         s.index, s.strain_units, s.taylor_deformation, s.inclination_deg, s.net_strain, s.semi_axes_m[0],
         s.tank_treading_frequency_per_s, s.volume_m3);
+    std::fflush(stdout);
+  };
+  cb.on_restart = [](const scenes::ShearFlowRestart& r) {
+    std::printf(
+        "restart: thickness %.3f kernel widths at strain %.2f on %.4g cells per radius: now %.4g (%dx%dx%d), "
+        "%.1f s abandoned\n",
+        r.thickness_over_kernel, r.strain_units, r.old_cells_per_radius, r.new_cells_per_radius, r.setup.nx,
+        r.setup.ny, r.setup.nz, r.abandoned_wall_time_s);
     std::fflush(stdout);
   };
   int checkpoints = 0;
@@ -122,6 +135,11 @@ int main(int argc, char** argv) {
       static_cast<long long>(r.marking_full), r.marking_s,
       1e3 * r.marking_s / static_cast<double>(std::max<std::int64_t>(r.time_steps, 1)),
       static_cast<long long>(r.marked_nodes));
+  std::printf(
+      "cells_per_radius %.4g predicted thickness / kernel %.2f thickness / kernel %.2f (min %.2f) restarts "
+      "%zu\n",
+      s.cells_per_radius, s.predicted_thickness_over_kernel, r.thickness_over_kernel,
+      r.min_thickness_over_kernel, r.restarts.size());
   if (r.resumed_from_step >= 0)
     std::printf("resumed after step %lld\n", static_cast<long long>(r.resumed_from_step));
   if (!r.resume_refused.empty()) std::printf("resume refused: %s\n", r.resume_refused.c_str());

@@ -94,6 +94,8 @@ class FlowRecorder : public ResultRecorder {
     keep(writer_->write_integer("/parameters/setup/nx", setup_.nx));
     keep(writer_->write_integer("/parameters/setup/ny", setup_.ny));
     keep(writer_->write_integer("/parameters/setup/nz", setup_.nz));
+    put("cells_per_radius", setup_.cells_per_radius, "");
+    put("predicted_thickness_over_kernel", setup_.predicted_thickness_over_kernel, "");
     put("wall_speed_m_per_s", setup_.wall_speed_m_per_s, "m s-1");
     put("mach_number", setup_.mach_number, "");
     put("viscosity_ratio", setup_.viscosity_ratio, "");
@@ -118,6 +120,7 @@ class FlowRecorder : public ResultRecorder {
       put("stiffness_ratio", result.stiffness_ratio, "");
       put("mesh_spacing_over_dx", result.mesh_spacing_over_dx, "");
       put("thickness_over_kernel", result.thickness_over_kernel, "");
+      put("min_thickness_over_kernel", result.min_thickness_over_kernel, "");
       keep(writer_->write_integer("/summary/time_steps", result.time_steps));
       // Viscosity contrast: the marking updates run (0 for lambda = 1) and the nodes inside at the end.
       keep(writer_->write_integer("/summary/marking_updates", result.marking_updates));

@@ -68,6 +68,7 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
     }
     n.hydrodynamic_radius_offset = in.hydrodynamic_radius_offset();
   }
+  if (in.has_resolve_thickness()) n.resolve_thickness = in.resolve_thickness();
   if (in.volumetric_term() == v1::VOLUMETRIC_TERM_PER_TET) {
     n.volumetric = elastic::VolumetricTerm::kPerTet;
   } else if (in.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {

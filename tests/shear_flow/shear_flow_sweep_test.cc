@@ -78,13 +78,18 @@ TEST(ShearFlowSweep, SteadyDeformationAgainstRoscoeAndLargeStretch) {
      << defaults.numerics.box_y_radii << " x " << defaults.numerics.box_z_radii << " radii, "
      << ibm::kernel_name(defaults.numerics.ibm_kernel) << ", Re_p "
      << defaults.numerics.target_reynolds_number
-     << ", nu 0.48. Roscoe at Ca 0.8 and 1.6 interpolated linearly in the table.\n\n"
+     << ", nu 0.48, numerics.resolve_thickness on (cells per radius raised to the lattice that resolves "
+        "the predicted thickness; a run thinner than 1.5 kernel widths restarts finer once). Roscoe at Ca "
+        "0.8 "
+        "and 1.6 interpolated linearly in the table. The wall time of each point includes an abandoned "
+        "coarse attempt where the run restarted.\n\n"
      << "| Ca | D | D Roscoe | D / Roscoe - 1 | incl deg | Roscoe deg | tank/gammadot | Roscoe | net strain "
-        "| thickness / kernel | stop | strain | wall s |\n"
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|\n";
+        "| cells/R | predicted thickness / kernel | thickness / kernel | restarts | stop | strain | wall s "
+        "|\n"
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|\n";
   csv << "ca,taylor_deformation,roscoe_d_lambda1,relative_deviation,inclination_deg,roscoe_theta_deg,"
-         "tank_over_gammadot,roscoe_tank_over_gammadot,net_strain,thickness_over_kernel,stop,strain_units,"
-         "wall_s\n";
+         "tank_over_gammadot,roscoe_tank_over_gammadot,net_strain,cells_per_radius,"
+         "predicted_thickness_over_kernel,thickness_over_kernel,restarts,stop,strain_units,wall_s\n";
   auto report = [&](double ca, const ShearFlowResult& r) {
     const RoscoeRow ref = roscoe(ca);
     const double tank = r.tank_treading_frequency_per_s / r.setup.shear_rate_per_s;
@@ -92,16 +97,21 @@ TEST(ShearFlowSweep, SteadyDeformationAgainstRoscoeAndLargeStretch) {
     char line[512];
     const char* stop = r.status.ok() ? stop_name(r.stop).data() : "failed";
     const double deviation = ref.d > 0 ? r.steady_taylor_deformation / ref.d - 1.0 : 0.0;
-    std::snprintf(
-        line, sizeof line,
-        "| %g | %.4f | %.4f | %+.1f %% | %.2f | %.2f | %.3f | %.3f | %.3f | %.2f | %s | %.1f | %.0f |\n", ca,
-        r.steady_taylor_deformation, ref.d, 100.0 * deviation, r.steady_inclination_deg, ref.theta_deg, tank,
-        ref.tank_over_gammadot, r.steady_net_strain, r.thickness_over_kernel, stop, strain, r.wall_time_s);
+    std::snprintf(line, sizeof line,
+                  "| %g | %.4f | %.4f | %+.1f %% | %.2f | %.2f | %.3f | %.3f | %.3f | %.4g | %.2f | %.2f | "
+                  "%zu | %s | %.1f "
+                  "| %.0f |\n",
+                  ca, r.steady_taylor_deformation, ref.d, 100.0 * deviation, r.steady_inclination_deg,
+                  ref.theta_deg, tank, ref.tank_over_gammadot, r.steady_net_strain, r.setup.cells_per_radius,
+                  r.setup.predicted_thickness_over_kernel, r.thickness_over_kernel, r.restarts.size(), stop,
+                  strain, r.wall_time_s);
     md << line;
-    std::snprintf(line, sizeof line, "%g,%.6f,%.4f,%.4f,%.3f,%.2f,%.4f,%.4f,%.4f,%.3f,%s,%.2f,%.1f\n", ca,
+    std::snprintf(line, sizeof line,
+                  "%g,%.6f,%.4f,%.4f,%.3f,%.2f,%.4f,%.4f,%.4f,%.4g,%.3f,%.3f,%zu,%s,%.2f,%.1f\n", ca,
                   r.steady_taylor_deformation, ref.d, deviation, r.steady_inclination_deg, ref.theta_deg,
-                  tank, ref.tank_over_gammadot, r.steady_net_strain, r.thickness_over_kernel, stop, strain,
-                  r.wall_time_s);
+                  tank, ref.tank_over_gammadot, r.steady_net_strain, r.setup.cells_per_radius,
+                  r.setup.predicted_thickness_over_kernel, r.thickness_over_kernel, r.restarts.size(), stop,
+                  strain, r.wall_time_s);
     csv << line;
     for (const std::string& w : r.warnings) notes.push_back("Ca " + std::to_string(ca) + ": " + w);
     md.flush();

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -25,6 +26,7 @@
 #include "physics/observables/shape.h"
 #include "physics/scenes/shear_flow/shear_flow_checkpoint.h"
 #include "physics/scenes/shear_flow/shear_flow_internal.h"
+#include "physics/scenes/shear_flow/shear_flow_resolution.h"
 #include "physics/units/units.h"
 
 namespace cellflow::scenes {
@@ -339,6 +341,16 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t
       if (cb.on_sample) cb.on_sample(s);
       if (cb.on_progress)
         cb.on_progress(std::min(1.0, static_cast<double>(step) / static_cast<double>(max_steps)));
+      // The thickness check: a cell thinner than the kernel is not resolved
+      // (shear_flow_resolution.h); restart on a finer lattice when allowed.
+      const double thickness_over_kernel = 2.0 * s.semi_axes_m[0] / (width * dx);
+      if (thickness_over_kernel < kMinThicknessOverKernel &&
+          2.0 * s.semi_axes_m[0] < kFlattenedThicknessOverRadius * run.params->cell.radius_m && run.refine &&
+          run.refine(s, thickness_over_kernel)) {
+        run.refine_requested = true;
+        result.stop = limit_stop;  // not reported: the run restarts
+        break;
+      }
       if (is_steady(result, n)) {
         result.stop = ShearFlowStop::kSteady;
         break;
@@ -407,7 +419,13 @@ ShearFlowResult run_shear_flow(const ShearFlowParams& params, const ShearFlowCal
   return run_shear_flow(*planned, callbacks);
 }
 
-ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowCallbacks& callbacks) {
+namespace {
+
+using RefineCheck = std::function<bool(const ShearFlowSample&, double)>;
+
+// One run on the planned lattice; `refine` is the thickness check (may be empty).
+ShearFlowResult run_attempt(const PlannedShearFlow& planned, const ShearFlowCallbacks& callbacks,
+                            const RefineCheck& refine, bool& refine_requested) {
   const auto wall_start = std::chrono::steady_clock::now();
   const std::string prefix = "shear_flow.";
   const ShearFlowParams& params = planned.params();
@@ -416,6 +434,7 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
   Run run;
   run.params = &params;
   run.callbacks = &callbacks;
+  run.refine = refine;
   run.plan = Plan{planned.setup(), planned.units()};
   result.setup = run.plan.setup;
   const ShearFlowNumerics& n = params.numerics;
@@ -549,7 +568,8 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
   } else {
     time_loop<double>(run, *fluid, result, resume_step);
   }
-  summarise(run, result);
+  refine_requested = run.refine_requested;
+  if (!refine_requested) summarise(run, result);
   if (run.marking) {
     const marking::MarkingStats& stats = run.marking->stats();
     result.marking_updates = stats.updates;
@@ -559,6 +579,59 @@ ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowC
   }
   result.wall_time_s = seconds_since(wall_start);
   return result;
+}
+
+// A restart loses what the callbacks have recorded and costs about
+// (new / old cells per radius)^5 in run time (docs/shear_flow/large_ca.md:
+// 0.5 % in D at Ca = 2), so only a caller that asks for it (on_restart) gets
+// one; checkpoints belong to one lattice.
+bool restart_allowed(const ShearFlowCallbacks& cb) {
+  const ShearFlowCheckpointing& ck = cb.checkpointing;
+  if (ck.due || !ck.write_path.empty() || !ck.resume_path.empty()) return false;
+  return static_cast<bool>(cb.on_restart);
+}
+
+}  // namespace
+
+ShearFlowResult run_shear_flow(const PlannedShearFlow& planned, const ShearFlowCallbacks& callbacks) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const bool may_restart = planned.params().numerics.resolve_thickness && restart_allowed(callbacks);
+  PlannedShearFlow current = planned;
+  std::vector<ShearFlowRestart> restarts;
+  while (true) {
+    std::optional<PlannedShearFlow> finer;
+    ShearFlowRestart pending;
+    RefineCheck refine;
+    if (may_restart && restarts.size() < static_cast<std::size_t>(kMaxResolutionRestarts)) {
+      refine = [&](const ShearFlowSample& s, double thickness_over_kernel) {
+        const double old_cpr = current.setup().cells_per_radius;
+        if (old_cpr >= kMaxResolvingCellsPerRadius) return false;
+        ShearFlowParams p = current.params();
+        p.numerics.cells_per_radius =
+            std::min(refined_cells_per_radius(old_cpr, thickness_over_kernel), kMaxResolvingCellsPerRadius);
+        StatusOr<PlannedShearFlow> plan = plan_shear_flow_run(p, "shear_flow.");
+        if (!plan.ok()) return false;  // the finer lattice is refused: stay, and warn at the end
+        pending.strain_units = s.strain_units;
+        pending.thickness_over_kernel = thickness_over_kernel;
+        pending.old_cells_per_radius = old_cpr;
+        pending.new_cells_per_radius = plan->setup().cells_per_radius;
+        finer.emplace(std::move(*plan));
+        return true;
+      };
+    }
+    bool refine_requested = false;
+    ShearFlowResult result = run_attempt(current, callbacks, refine, refine_requested);
+    if (!refine_requested || !finer) {
+      result.restarts = std::move(restarts);
+      result.wall_time_s = seconds_since(wall_start);
+      return result;
+    }
+    pending.abandoned_wall_time_s = result.wall_time_s;
+    pending.setup = finer->setup();
+    if (callbacks.on_restart) callbacks.on_restart(pending);
+    restarts.push_back(pending);
+    current = std::move(*finer);
+  }
 }
 
 }  // namespace cellflow::scenes

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdint>
 #include <optional>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -92,6 +93,11 @@ struct Run {
   // re-marked every marking_every steps (a divisor of the sample interval).
   std::optional<marking::NodeMarking> marking;
   std::int64_t marking_every = 0;
+  // The thickness check (numerics.resolve_thickness): called with a sample
+  // whose 2 a1 / (kernel width dx) is below kMinThicknessOverKernel; true
+  // (a finer lattice was planned): this attempt ends for a restart there.
+  std::function<bool(const ShearFlowSample&, double thickness_over_kernel)> refine;
+  bool refine_requested = false;
 };
 
 // The marking interval of a run (numerics.marking_every_steps, or its

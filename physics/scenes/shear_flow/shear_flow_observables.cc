@@ -11,6 +11,7 @@
 #include "physics/observables/shape.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/scenes/shear_flow/shear_flow_internal.h"
+#include "physics/scenes/shear_flow/shear_flow_resolution.h"
 
 namespace cellflow::scenes {
 
@@ -94,6 +95,12 @@ void summarise(const Run& run, ShearFlowResult& result) {
   // Thickness 2 a1 against the kernel width kernel_width dx.
   const double kernel_m = ibm::kernel_width(n.ibm_kernel) * run.plan.units.dx_m();
   result.thickness_over_kernel = 2.0 * result.samples[last].semi_axes_m[0] / kernel_m;
+  result.min_thickness_over_kernel = result.thickness_over_kernel;
+  for (int i = 1; i <= last; ++i) {
+    result.min_thickness_over_kernel =
+        std::min(result.min_thickness_over_kernel, 2.0 * result.samples[i].semi_axes_m[0] / kernel_m);
+  }
+  if (!run.plan.setup.resolution_note.empty()) result.warnings.push_back(run.plan.setup.resolution_note);
   if (result.thickness_over_kernel < kMinThicknessOverKernel) {
     result.warnings.push_back(
         "under-resolved: the cell's thickness 2 a1 = " +
@@ -101,8 +108,11 @@ void summarise(const Run& run, ShearFlowResult& result) {
         number_text(result.thickness_over_kernel, 6) + " kernel widths (below " +
         number_text(kMinThicknessOverKernel, 6) +
         "), so D and the strain are overestimated; raise shear_flow.numerics.cells_per_radius to at least " +
-        number_text(std::ceil(n.cells_per_radius * kMinThicknessOverKernel / result.thickness_over_kernel),
-                    6));
+        number_text(refined_cells_per_radius(n.cells_per_radius, result.thickness_over_kernel), 6) +
+        (n.resolve_thickness ? " (numerics.resolve_thickness restarts finer only where nothing was recorded "
+                               "yet or the caller takes restarts, without checkpoints, up to " +
+                                   number_text(kMaxResolvingCellsPerRadius, 6) + " cells per radius)"
+                             : std::string()));
   }
 }
 

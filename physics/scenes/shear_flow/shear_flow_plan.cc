@@ -9,6 +9,7 @@
 #include "physics/lb/fluid.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/scenes/shear_flow/shear_flow_internal.h"
+#include "physics/scenes/shear_flow/shear_flow_resolution.h"
 #include "physics/units/units.h"
 
 namespace cellflow::scenes {
@@ -83,8 +84,48 @@ double min_box_wall_radii(const ShearFlowNumerics& n) {
 
 }  // namespace
 
+namespace {
+
+StatusOr<Plan> make_plan_at(const ShearFlowParams& params, std::string_view field_prefix);
+
+// Ca = eta gammadot / mu (paper eq. 17), set or derived; 0 when it cannot be derived.
+double capillary_number_of(const ShearFlowParams& params) {
+  if (params.capillary_number > 0.0) return params.capillary_number;
+  const double mu = shear_modulus(params.cell.material);
+  return mu > 0.0 ? params.fluid_viscosity_pa_s * params.shear_rate_per_s / mu : 0.0;
+}
+
+}  // namespace
+
 StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_prefix) {
   if (Status s = validate(params, field_prefix); !s.ok()) return s;
+  const ShearFlowNumerics& n = params.numerics;
+  const double ca = capillary_number_of(params);
+  const double resolving =
+      std::min(resolving_cells_per_radius(ca, n.ibm_kernel), kMaxResolvingCellsPerRadius);
+  if (n.resolve_thickness && predicted_thickness_over_radius(ca) < kFlattenedThicknessOverRadius &&
+      resolving > n.cells_per_radius) {
+    // The lattice on which the predicted steady thickness spans
+    // kThicknessMargin x kMinThicknessOverKernel kernel widths.
+    ShearFlowParams finer = params;
+    finer.numerics.cells_per_radius = resolving;
+    StatusOr<Plan> plan = make_plan_at(finer, field_prefix);
+    if (plan.ok()) return plan;
+    StatusOr<Plan> coarse = make_plan_at(params, field_prefix);
+    if (coarse.ok()) {
+      coarse->setup.resolution_note =
+          "the lattice that resolves the predicted thickness at Ca = " + number_text(ca, 6) + " (" +
+          std::string(field_prefix) + "numerics.cells_per_radius = " + number_text(resolving, 6) +
+          ") was refused (" + plan.status().message() + "); running at " + number_text(n.cells_per_radius, 6);
+    }
+    return coarse;
+  }
+  return make_plan_at(params, field_prefix);
+}
+
+namespace {
+
+StatusOr<Plan> make_plan_at(const ShearFlowParams& params, std::string_view field_prefix) {
   const std::string prefix(field_prefix);
   const std::string numerics_prefix = prefix + "numerics.";
   const ShearFlowNumerics& n = params.numerics;
@@ -145,6 +186,10 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
   setup.mach_number = std::abs(u.velocity_to_lattice(setup.wall_speed_m_per_s)) * std::sqrt(3.0);
   setup.shear_rate_lattice = u.shear_rate_to_lattice(gammadot);
   setup.steps_per_strain = 1.0 / setup.shear_rate_lattice;
+  setup.cells_per_radius = n.cells_per_radius;
+  // 2 a1 / (width dx) with dx = R / cells_per_radius
+  setup.predicted_thickness_over_kernel = predicted_thickness_over_radius(setup.capillary_number) *
+                                          n.cells_per_radius / ibm::kernel_width(n.ibm_kernel);
 
   units::StabilityLimits limits;
   limits.max_mach = n.max_mach;
@@ -186,6 +231,8 @@ StatusOr<Plan> make_plan(const ShearFlowParams& params, std::string_view field_p
   }
   return plan;
 }
+
+}  // namespace
 
 }  // namespace shear_flow_detail
 
@@ -374,7 +421,9 @@ StatusOr<ShearFlowSetup> plan_shear_flow(const ShearFlowParams& params, std::str
 StatusOr<PlannedShearFlow> plan_shear_flow_run(const ShearFlowParams& params, std::string_view field_prefix) {
   StatusOr<Plan> plan = make_plan(params, field_prefix);
   if (!plan.ok()) return plan.status();
-  return PlannedShearFlow(params, std::move(plan->setup), plan->units);
+  ShearFlowParams chosen = params;
+  chosen.numerics.cells_per_radius = plan->setup.cells_per_radius;  // the resolving lattice, if raised
+  return PlannedShearFlow(std::move(chosen), std::move(plan->setup), plan->units);
 }
 
 void PlannedShearFlow::set_threads(int threads) {

@@ -687,6 +687,25 @@ StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& requ
 
 namespace {
 
+// Why a suspension sample cannot be stored ("" when it can): a worker's report
+// is bounded like a request, so a hostile one cannot grow the event log by
+// repeating cells (the result file, not the event, holds every cell).
+std::string suspension_sample_refusal(const v1::SuspensionSample& s) {
+  if (s.cell_count() < 0) return "suspension_sample.cell_count: must be >= 0";
+  if (s.cells_size() > jobs::kMaxStreamedSuspensionCells) {
+    return "suspension_sample.cells: " + std::to_string(s.cells_size()) + " cells, at most " +
+           std::to_string(jobs::kMaxStreamedSuspensionCells) + " are streamed";
+  }
+  if (s.cells_size() > s.cell_count()) return "suspension_sample.cells: more cells than cell_count";
+  for (int i = 0; i < s.cells_size(); ++i) {
+    const v1::SuspendedCellState& cell = s.cells(i);
+    const std::string field = "suspension_sample.cells[" + std::to_string(i) + "]";
+    if (cell.cell() < 0 || cell.cell() >= s.cell_count()) return field + ".cell: outside [0, cell_count)";
+    if (cell.centroid_m_size() != 3) return field + ".centroid_m: must hold 3 values";
+  }
+  return "";
+}
+
 // A report for a job that no longer exists (cancelled, then deleted while its
 // worker still ran) is not an error of the stream: the ack tells the worker
 // that its attempt is over, so it stops instead of reconnecting until its
@@ -737,6 +756,11 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
     case v1::WorkerReport::kDeformationSample:
       *event.mutable_deformation_sample() = report.deformation_sample();
       sample_index = report.deformation_sample().index();
+      break;
+    case v1::WorkerReport::kSuspensionSample:
+      refused = suspension_sample_refusal(report.suspension_sample());
+      *event.mutable_suspension_sample() = report.suspension_sample();
+      sample_index = report.suspension_sample().index();
       break;
     case v1::WorkerReport::KIND_NOT_SET:
       return invalid_argument("kind: a report needs a heartbeat, progress or sample");

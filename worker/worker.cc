@@ -258,6 +258,11 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
     *report.mutable_deformation_sample() = sample;
     reporter.send(std::move(report));
   };
+  events.suspension_sample = [&](const v1::SuspensionSample& sample) {
+    v1::WorkerReport report;
+    *report.mutable_suspension_sample() = sample;
+    reporter.send(std::move(report));
+  };
   events.progress = [&](double fraction, const std::string& stage) {
     // At most five progress reports a second; the first and the last always.
     const auto now = Clock::now();

@@ -126,21 +126,23 @@ int watch(client::Client& client, const std::string& job_id, std::int64_t after,
 // The server reads no file a spec names: a cell's mesh_file (from --mesh-file
 // or a JSON spec) is read here, uploaded, and replaced by its hash.
 int upload_mesh_file(client::Client& client, v1::JobSpec& spec) {
-  v1::CellSpec* cell = jobs::mutable_scene_cell(spec);  // whichever scene holds a cell
-  if (cell == nullptr || cell->mesh_file().empty()) return ExitCode::kExitOk;
-  std::ifstream in(cell->mesh_file(), std::ios::binary);
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  if (!in && !in.eof()) {
-    std::fprintf(stderr, "cellflow: cannot read the mesh file %s\n", cell->mesh_file().c_str());
-    return ExitCode::kExitInvalidArgument;
+  for (const jobs::SceneCell& scene_cell : jobs::scene_cells(spec)) {  // every cell of whichever scene
+    v1::CellSpec* cell = scene_cell.cell;
+    if (cell->mesh_file().empty()) continue;
+    std::ifstream in(cell->mesh_file(), std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    if (!in && !in.eof()) {
+      std::fprintf(stderr, "cellflow: cannot read the mesh file %s\n", cell->mesh_file().c_str());
+      return ExitCode::kExitInvalidArgument;
+    }
+    v1::MeshRef ref;
+    const std::string name = std::filesystem::path(cell->mesh_file()).filename().string();
+    const grpc::Status status = client.upload_mesh(bytes.str(), name, &ref);
+    if (!status.ok()) return report_error(status, "upload mesh " + cell->mesh_file());
+    cell->clear_mesh_file();
+    cell->set_mesh_sha256(ref.sha256());
   }
-  v1::MeshRef ref;
-  const std::string name = std::filesystem::path(cell->mesh_file()).filename().string();
-  const grpc::Status status = client.upload_mesh(bytes.str(), name, &ref);
-  if (!status.ok()) return report_error(status, "upload mesh " + cell->mesh_file());
-  cell->clear_mesh_file();
-  cell->set_mesh_sha256(ref.sha256());
   return ExitCode::kExitOk;
 }
 

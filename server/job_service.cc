@@ -242,9 +242,10 @@ StatusOr<std::unique_ptr<jobs::PreparedJob>> JobService::prepare_submitted(const
                             std::to_string(options_.max_name_bytes));
   }
   v1::JobSpec resolved = spec;
-  std::string scene;
-  if (v1::CellSpec* cell = jobs::mutable_scene_cell(resolved, &scene)) {
-    const std::string field = scene + ".cell.";
+  // Every cell of the scene (a suspension has one per kind).
+  for (const jobs::SceneCell& scene_cell : jobs::scene_cells(resolved)) {
+    v1::CellSpec* cell = scene_cell.cell;
+    const std::string field = scene_cell.field + ".";
     // A request names no file of the server's or a worker's machine: no
     // stat, no open, nothing about the path in the answer.
     if (!cell->mesh_file().empty()) {
@@ -358,11 +359,11 @@ Status JobService::fetch_mesh(const v1::FetchMeshRequest& request,
   auto job = store_.get(*id);
   if (!job.ok()) return job.status();
   v1::JobSpec spec = job->spec();
-  std::string scene;
-  const v1::CellSpec* cell = jobs::mutable_scene_cell(spec, &scene);
-  if (cell == nullptr || cell->mesh_sha256().empty() || cell->mesh_sha256() != request.sha256()) {
-    return invalid_argument("sha256: not the mesh of the leased job's spec");
-  }
+  const std::vector<jobs::SceneCell> cells = jobs::scene_cells(spec);
+  const bool named = std::any_of(cells.begin(), cells.end(), [&](const jobs::SceneCell& c) {
+    return !c.cell->mesh_sha256().empty() && c.cell->mesh_sha256() == request.sha256();
+  });
+  if (!named) return invalid_argument("sha256: not the mesh of the leased job's spec");
   auto bytes = meshes_.get(request.sha256());
   if (!bytes.ok()) return bytes.status();
   std::size_t offset = 0;

@@ -57,6 +57,30 @@ TEST_F(ServiceTest, MeshFilePathsAreRefusedQuicklyAndSigtermStillExits) {
     EXPECT_EQ(status.error_message().find(path), std::string::npos) << status.error_message();
     EXPECT_EQ(status.error_message().find("root:"), std::string::npos) << status.error_message();
   }
+  // Every cell of a scene is checked: a suspension's second kind, and bytes smuggled into its first.
+  {
+    v1::SubmitJobRequest request;
+    auto* suspension = request.mutable_spec()->mutable_suspension();
+    suspension->set_capillary_number(0.1);
+    for (int k = 0; k < 2; ++k) {
+      auto* cells = suspension->add_cells();
+      *cells->mutable_cell() = small_compression().compression().cell();
+      cells->set_count(1);
+    }
+    suspension->mutable_cells(1)->mutable_cell()->set_mesh_file("/etc/passwd");
+    v1::SubmitJobResponse response;
+    grpc::Status status = client_->submit(request, &response);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(status.error_message().find("suspension.cells[1].cell.mesh_file"), std::string::npos)
+        << status.error_message();
+    EXPECT_EQ(status.error_message().find("/etc/passwd"), std::string::npos) << status.error_message();
+    suspension->mutable_cells(1)->mutable_cell()->clear_mesh_file();
+    suspension->mutable_cells(0)->mutable_cell()->set_mesh_bytes("$MeshFormat\n");
+    status = client_->submit(request, &response);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(status.error_message().find("suspension.cells[0].cell.mesh_bytes"), std::string::npos)
+        << status.error_message();
+  }
   EXPECT_LT(std::chrono::steady_clock::now() - started, 5s);
   v1::ListJobsResponse jobs;
   ASSERT_TRUE(client_->list(v1::ListJobsRequest(), &jobs).ok());

@@ -10,6 +10,8 @@
 //   f_i* = f_i - w+ (f+ - f_eq+) - w- (f- - f_eq-) + (1 - w+/2) S+ + (1 - w-/2) S-
 #pragma once
 
+#include <cstdint>
+
 #include "physics/lb/d3q19.h"
 
 // Everything the row loops call is forced inline, so that it is compiled for
@@ -28,6 +30,16 @@ struct CollisionCoeffs {
   T force_plus;   // 1 - omega_plus / 2
   T force_minus;  // 1 - omega_minus / 2
   T gx, gy, gz;   // uniform body-force density
+};
+
+// Per-phase coefficients (viscosity contrast): entry p for the nodes of
+// phase p, 256 entries so that any byte indexes inside the table.
+template <class T>
+struct PhaseTable {
+  alignas(64) T omega_plus[256];
+  alignas(64) T omega_minus[256];
+  alignas(64) T force_plus[256];
+  alignas(64) T force_minus[256];
 };
 
 // c_i . a with the zero components of c_i left out (0 * a is not folded away
@@ -53,7 +65,7 @@ CELLFLOW_LB_INLINE T c_dot(T ax, T ay, T az) {
 // Relaxes the pair (I, I + 9) in place.
 template <int I, class T>
 CELLFLOW_LB_INLINE void relax_pair(T& hi, T& hj, T drho, T rho, T ux, T uy, T uz, T fx, T fy, T fz, T usq15,
-                                   T uf3, const CollisionCoeffs<T>& k) {
+                                   T uf3, T omega_plus, T omega_minus, T force_plus, T force_minus) {
   constexpr T w = static_cast<T>(kWeight[I]);
   const T cu = c_dot<I>(ux, uy, uz);
   const T cf = c_dot<I>(fx, fy, fz);
@@ -65,8 +77,8 @@ CELLFLOW_LB_INLINE void relax_pair(T& hi, T& hj, T drho, T rho, T ux, T uy, T uz
   const T src_asym = w * T(3) * cf;
   const T sym = T(0.5) * (hi + hj);
   const T asym = T(0.5) * (hi - hj);
-  const T d_sym = k.force_plus * src_sym - k.omega_plus * (sym - eq_sym);
-  const T d_asym = k.force_minus * src_asym - k.omega_minus * (asym - eq_asym);
+  const T d_sym = force_plus * src_sym - omega_plus * (sym - eq_sym);
+  const T d_asym = force_minus * src_asym - omega_minus * (asym - eq_asym);
   hi = hi + d_sym + d_asym;
   hj = hj + d_sym - d_asym;
 }
@@ -74,12 +86,15 @@ CELLFLOW_LB_INLINE void relax_pair(T& hi, T& hj, T drho, T rho, T ux, T uy, T uz
 // Collides n consecutive nodes: reads h_i from in[i][x], writes h_i* to
 // out[i][x] (in and out may alias node by node), the density to rho_out[x]
 // and, if kVelocityOut, the velocity. Body force = uniform + field (if
-// kForceField).
-template <class T, bool kForceField, bool kVelocityOut>
+// kForceField). kPhases: node x relaxes with the coefficients of
+// table[phase[x]] instead of k's (which then give only the uniform force).
+template <class T, bool kForceField, bool kVelocityOut, bool kPhases = false>
 CELLFLOW_LB_INLINE void collide_run(const T* const* in, T* const* out, int n, const T* __restrict fxf,
                                     const T* __restrict fyf, const T* __restrict fzf, T* __restrict uxo,
                                     T* __restrict uyo, T* __restrict uzo, T* __restrict rho_out,
-                                    const CollisionCoeffs<T> k) {
+                                    const CollisionCoeffs<T> k,
+                                    const std::uint8_t* __restrict phase = nullptr,
+                                    const PhaseTable<T>* __restrict table = nullptr) {
   const T *i0 = in[0], *i1 = in[1], *i2 = in[2], *i3 = in[3], *i4 = in[4], *i5 = in[5], *i6 = in[6],
           *i7 = in[7], *i8 = in[8], *i9 = in[9], *i10 = in[10], *i11 = in[11], *i12 = in[12], *i13 = in[13],
           *i14 = in[14], *i15 = in[15], *i16 = in[16], *i17 = in[17], *i18 = in[18];
@@ -118,18 +133,26 @@ CELLFLOW_LB_INLINE void collide_run(const T* const* in, T* const* out, int n, co
     rho_out[x] = rho;
     const T usq15 = T(1.5) * (ux * ux + uy * uy + uz * uz);
     const T uf3 = T(3) * (ux * fx + uy * fy + uz * fz);
+    T op = k.omega_plus, om = k.omega_minus, fp = k.force_plus, fm = k.force_minus;
+    if constexpr (kPhases) {
+      const int ph = phase[x];
+      op = table->omega_plus[ph];
+      om = table->omega_minus[ph];
+      fp = table->force_plus[ph];
+      fm = table->force_minus[ph];
+    }
     // rest population: only the symmetric part relaxes; S_0 = -3 w_0 u.F
     constexpr T w0 = static_cast<T>(kWeight[0]);
-    h0 = h0 - k.omega_plus * (h0 - w0 * (drho - rho * usq15)) - k.force_plus * w0 * uf3;
-    relax_pair<1>(h1, h10, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<2>(h2, h11, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<3>(h3, h12, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<4>(h4, h13, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<5>(h5, h14, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<6>(h6, h15, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<7>(h7, h16, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<8>(h8, h17, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
-    relax_pair<9>(h9, h18, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, k);
+    h0 = h0 - op * (h0 - w0 * (drho - rho * usq15)) - fp * w0 * uf3;
+    relax_pair<1>(h1, h10, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<2>(h2, h11, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<3>(h3, h12, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<4>(h4, h13, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<5>(h5, h14, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<6>(h6, h15, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<7>(h7, h16, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<8>(h8, h17, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
+    relax_pair<9>(h9, h18, drho, rho, ux, uy, uz, fx, fy, fz, usq15, uf3, op, om, fp, fm);
     o0[x] = h0;
     o1[x] = h1;
     o2[x] = h2;

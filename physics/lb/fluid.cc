@@ -45,6 +45,16 @@ Status validate(const FluidParams& p) {
       return invalid_argument("lb: wall velocities and uniform_force must be finite");
     }
   }
+  if (p.phase_taus.size() > static_cast<std::size_t>(kMaxPhases)) {
+    return invalid_argument("lb: phase_taus has " + std::to_string(p.phase_taus.size()) +
+                            " entries, at most " + std::to_string(kMaxPhases));
+  }
+  for (std::size_t i = 0; i < p.phase_taus.size(); ++i) {
+    if (!(p.phase_taus[i] > 0.5) || !std::isfinite(p.phase_taus[i])) {
+      return invalid_argument("lb: phase_taus[" + std::to_string(i) +
+                              "] = " + format_double(p.phase_taus[i]) + " must lie in (0.5, inf)");
+    }
+  }
   if (p.threads < 0) return invalid_argument("lb: threads = " + std::to_string(p.threads) + " must be >= 0");
   if (!simd_supported(p.simd)) {
     return invalid_argument("lb: simd = " + std::string(simd_name(p.simd)) +
@@ -62,7 +72,7 @@ std::size_t memory_bytes(const FluidParams& p) {
   std::size_t arrays = kQ * (p.streaming == Streaming::kTwoArray ? 2 : 1);
   if (p.force_field) arrays += 3;
   if (p.velocity_field) arrays += 3;
-  return arrays * stride * value + wall_density_size(p) * value;
+  return arrays * stride * value + wall_density_size(p) * value + (p.phase_taus.empty() ? 0 : nodes);
 }
 
 Fluid::Fluid(const FluidParams& params)
@@ -88,6 +98,7 @@ StatusOr<Fluid> make_fluid(const FluidParams& params) {
       if (params.force_field) fluid.force_f_ = AlignedArray<float>(field);
       if (params.velocity_field) fluid.velocity_f_ = AlignedArray<float>(field);
     }
+    if (!params.phase_taus.empty()) fluid.phases_ = AlignedArray<std::uint8_t>(fluid.num_nodes_);
   } catch (const std::bad_alloc&) {
     return Status(StatusCode::kResourceExhausted,
                   "lb: cannot allocate " + std::to_string(memory_bytes(params)) + " bytes for the lattice");
@@ -127,6 +138,25 @@ template VectorField<const double> Fluid::force_field<double>() const;
 template VectorField<const float> Fluid::force_field<float>() const;
 template VectorField<const double> Fluid::velocity_field<double>() const;
 template VectorField<const float> Fluid::velocity_field<float>() const;
+
+Status set_phases(Fluid& fluid, std::span<const std::uint8_t> phases) {
+  AlignedArray<std::uint8_t>& field = FluidAccess::phases(fluid);
+  if (field.empty())
+    return Status(StatusCode::kFailedPrecondition, "lb: the fluid has no phase field (phase_taus)");
+  if (phases.size() != fluid.num_nodes()) {
+    return invalid_argument("lb: " + std::to_string(phases.size()) + " phases for " +
+                            std::to_string(fluid.num_nodes()) + " nodes");
+  }
+  const std::uint8_t max_phase = static_cast<std::uint8_t>(fluid.params().phase_taus.size());
+  for (std::uint8_t v : phases) {
+    if (v > max_phase) {
+      return invalid_argument("lb: phase " + std::to_string(v) + " above the " + std::to_string(max_phase) +
+                              " phase_taus");
+    }
+  }
+  std::copy(phases.begin(), phases.end(), field.data());
+  return Status::ok_status();
+}
 
 void zero_force_field(Fluid& fluid) {
   if (!fluid.params().force_field) return;

@@ -25,6 +25,18 @@
 // fields to the last bit). The collide-stream loops are built for SSE2, AVX2
 // and AVX-512 and the best one the CPU has is used.
 //
+// Phases (viscosity contrast). With FluidParams::phase_taus non-empty a
+// per-node phase index (one byte, 0 everywhere at first) is allocated; node
+// x relaxes with tau_p, p = phase(x): p = 0 the fluid's own tau, p >= 1
+// phase_taus[p - 1], each with its own TRT tau_minus (the same magic
+// Lambda) and its own Guo forcing factors (1 - omega/2). The velocity
+// u = (sum f c + F/2) / rho and the density do not depend on tau (Guo 2002),
+// so the moments need no phase. Without phase_taus the kernels are exactly
+// those of a single tau (no phase field read). A phase table lookup (1 byte
+// per node read, 4 coefficients gathered from a table of at most 256 entries)
+// costs less memory traffic than a per-node relaxation time (8 bytes) and
+// needs no per-node division for tau_minus.
+//
 // Coupling. A force-density field (3 arrays) and a velocity field (3 arrays),
 // both in the storage precision, can be allocated. collide_stream adds the
 // force field (plus a uniform body force) via Guo forcing and writes the
@@ -38,6 +50,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "physics/core/status.h"
 #include "physics/lb/aligned_array.h"
@@ -66,11 +79,28 @@ struct FluidParams {
   std::array<double, 3> uniform_force{0.0, 0.0, 0.0};  // body-force density on every node
   bool force_field = false;     // allocate a per-node force-density field (e.g. IBM spreading target)
   bool velocity_field = false;  // allocate a per-node velocity field written by collide_stream
+  // Relaxation times of the phases 1..n (n <= kMaxPhases), each in (0.5, inf);
+  // empty: no phase field (every node relaxes with tau).
+  std::vector<double> phase_taus;
   Precision precision = Precision::kDouble;
   Streaming streaming = Streaming::kAA;
   int threads = 0;  // OpenMP threads for the lattice loops; 0 = OpenMP default
   Simd simd = Simd::kAuto;
 };
+
+inline constexpr int kMaxPhases = 255;
+
+// Relaxation times below this are refused by the flow scenes (not by this
+// module, whose limit is tau > 1/2): the TRT lattice at a few percent Mach
+// loses stability as tau -> 1/2 (tests/lb/phase_test.cc, shear wave at
+// tau = 0.505 stable, decay rate within 1 %).
+inline constexpr double kMinStableTau = 0.505;
+
+// tau of a fluid with viscosity lambda times that of a fluid of relaxation
+// time tau:  eta = rho c_s^2 (tau - 1/2) dt, so tau_in - 1/2 = lambda (tau - 1/2).
+inline double tau_for_viscosity_ratio(double tau, double lambda) {
+  return 0.5 + lambda * (tau - 0.5);
+}
 
 // The best SIMD level of this CPU, whether a level can run here, its name.
 Simd best_simd();
@@ -130,6 +160,11 @@ class Fluid {
   template <class T>
   VectorField<const T> velocity_field() const;
 
+  // The per-node phase indices (num_nodes, x innermost; values <=
+  // phase_taus.size()); empty without phase_taus. A value above
+  // phase_taus.size() is undefined behaviour of the step: set_phases checks.
+  std::span<const std::uint8_t> phases() const { return {phases_.data(), phases_.size()}; }
+
  private:
   friend StatusOr<Fluid> make_fluid(const FluidParams& params);
   friend struct FluidAccess;
@@ -145,7 +180,13 @@ class Fluid {
   int current_ = 0;  // two-array scheme: which half holds the populations
   AlignedArray<double> populations_d_, force_d_, velocity_d_, wall_density_d_;
   AlignedArray<float> populations_f_, force_f_, velocity_f_, wall_density_f_;
+  AlignedArray<std::uint8_t> phases_;
 };
+
+// Copies num_nodes phase indices into the fluid's phase field.
+// kFailedPrecondition without a phase field, kInvalidArgument for a wrong
+// size or an index above phase_taus.size().
+Status set_phases(Fluid& fluid, std::span<const std::uint8_t> phases);
 
 // One fused time step: for every node, moments (with the half-force shift),
 // TRT/BGK collision with Guo forcing from the force field (if allocated) plus

@@ -77,6 +77,8 @@ struct FluidAccess {
     else
       return f.wall_density_f_;
   }
+  static AlignedArray<std::uint8_t>& phases(Fluid& f) { return f.phases_; }
+  static const AlignedArray<std::uint8_t>& phases(const Fluid& f) { return f.phases_; }
   static std::size_t stride(const Fluid& f) { return f.stride_; }
   static bool& aa_swapped(Fluid& f) { return f.aa_swapped_; }
   static bool aa_swapped(const Fluid& f) { return f.aa_swapped_; }

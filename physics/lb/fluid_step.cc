@@ -29,44 +29,60 @@ detail::CollisionCoeffs<T> collision_coeffs(const FluidParams& p) {
           static_cast<T>(p.uniform_force[2])};
 }
 
+// The coefficients of every phase: entry 0 the fluid's tau, p >= 1
+// phase_taus[p - 1]; unused entries repeat entry 0.
+template <class T>
+void fill_phase_table(const FluidParams& p, detail::PhaseTable<T>& table) {
+  for (int ph = 0; ph < 256; ++ph) {
+    FluidParams q = p;
+    if (ph >= 1 && ph <= static_cast<int>(p.phase_taus.size())) q.tau = p.phase_taus[ph - 1];
+    q.phase_taus.clear();
+    const detail::CollisionCoeffs<T> k = collision_coeffs<T>(q);
+    table.omega_plus[ph] = k.omega_plus;
+    table.omega_minus[ph] = k.omega_minus;
+    table.force_plus[ph] = k.force_plus;
+    table.force_minus[ph] = k.force_minus;
+  }
+}
+
 // One row loop per SIMD level. The kernel is memory-bound with AVX2/AVX-512
 // but compute-bound with the baseline SSE2 (bench/lb), and the default build
 // does not use -march=native, so the level is picked at run time. Built with
 // -ffp-contract=off: no FMA contraction, every level gives the same bits.
-template <class T, bool kForce, bool kVel, Phase kPhase>
+template <class T, bool kForce, bool kVel, bool kPh, Phase kPhase>
 void rows_generic(const StepContext<T>& c, std::int64_t r0, std::int64_t r1) {
-  process_rows<T, kForce, kVel, kPhase>(c, r0, r1);
+  process_rows<T, kForce, kVel, kPh, kPhase>(c, r0, r1);
 }
 #if defined(__x86_64__)
-template <class T, bool kForce, bool kVel, Phase kPhase>
+template <class T, bool kForce, bool kVel, bool kPh, Phase kPhase>
 __attribute__((target("avx2"))) void rows_avx2(const StepContext<T>& c, std::int64_t r0, std::int64_t r1) {
-  process_rows<T, kForce, kVel, kPhase>(c, r0, r1);
+  process_rows<T, kForce, kVel, kPh, kPhase>(c, r0, r1);
 }
-template <class T, bool kForce, bool kVel, Phase kPhase>
+template <class T, bool kForce, bool kVel, bool kPh, Phase kPhase>
 __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void rows_avx512(const StepContext<T>& c,
                                                                                std::int64_t r0,
                                                                                std::int64_t r1) {
-  process_rows<T, kForce, kVel, kPhase>(c, r0, r1);
+  process_rows<T, kForce, kVel, kPh, kPhase>(c, r0, r1);
 }
 #endif
 
 template <class T>
 using RowsFn = void (*)(const StepContext<T>&, std::int64_t, std::int64_t);
 
-template <class T, bool kForce, bool kVel, Phase kPhase>
+template <class T, bool kForce, bool kVel, bool kPh, Phase kPhase>
 RowsFn<T> rows_for(Simd simd) {
 #if defined(__x86_64__)
-  if (simd == Simd::kAvx512) return rows_avx512<T, kForce, kVel, kPhase>;
-  if (simd == Simd::kAvx2) return rows_avx2<T, kForce, kVel, kPhase>;
+  if (simd == Simd::kAvx512) return rows_avx512<T, kForce, kVel, kPh, kPhase>;
+  if (simd == Simd::kAvx2) return rows_avx2<T, kForce, kVel, kPh, kPhase>;
 #endif
-  return rows_generic<T, kForce, kVel, kPhase>;
+  return rows_generic<T, kForce, kVel, kPh, kPhase>;
 }
 
 Simd resolve_simd(Simd requested) {
   return requested == Simd::kAuto ? best_simd() : requested;
 }
 
-template <class T, bool kForce, bool kVel>
+template <class T, bool kForce, bool kVel, bool kPh>
 void step_impl(Fluid& fluid) {
   const FluidParams& p = fluid.params();
   const std::size_t stride = FluidAccess::stride(fluid);
@@ -95,16 +111,22 @@ void step_impl(Fluid& fluid) {
   }
   c.wall_rho = FluidAccess::wall_density<T>(fluid).data();
   c.k = collision_coeffs<T>(p);
+  detail::PhaseTable<T> table;
+  if constexpr (kPh) {
+    fill_phase_table<T>(p, table);
+    c.phase = FluidAccess::phases(fluid).data();
+    c.table = &table;
+  }
   c.wall = wall_terms<T>(p);
   bool& swapped = FluidAccess::aa_swapped(fluid);
   const Simd simd = resolve_simd(p.simd);
   RowsFn<T> rows_fn;
   if (two_array)
-    rows_fn = rows_for<T, kForce, kVel, Phase::kTwoArray>(simd);
+    rows_fn = rows_for<T, kForce, kVel, kPh, Phase::kTwoArray>(simd);
   else if (!swapped)
-    rows_fn = rows_for<T, kForce, kVel, Phase::kAAEven>(simd);
+    rows_fn = rows_for<T, kForce, kVel, kPh, Phase::kAAEven>(simd);
   else
-    rows_fn = rows_for<T, kForce, kVel, Phase::kAAOdd>(simd);
+    rows_fn = rows_for<T, kForce, kVel, kPh, Phase::kAAOdd>(simd);
   // Rows are split into equal contiguous ranges, one per thread (a static
   // schedule); the result does not depend on the split.
   const std::int64_t rows = static_cast<std::int64_t>(p.ny) * p.nz;
@@ -121,17 +143,26 @@ void step_impl(Fluid& fluid) {
   ++FluidAccess::time_step(fluid);
 }
 
-template <class T>
-void step_typed(Fluid& fluid) {
+template <class T, bool kPh>
+void step_with_phases(Fluid& fluid) {
   const bool force = fluid.params().force_field, vel = fluid.params().velocity_field;
   if (force && vel)
-    step_impl<T, true, true>(fluid);
+    step_impl<T, true, true, kPh>(fluid);
   else if (force)
-    step_impl<T, true, false>(fluid);
+    step_impl<T, true, false, kPh>(fluid);
   else if (vel)
-    step_impl<T, false, true>(fluid);
+    step_impl<T, false, true, kPh>(fluid);
   else
-    step_impl<T, false, false>(fluid);
+    step_impl<T, false, false, kPh>(fluid);
+}
+
+// Without a phase field the kernels are those of one tau (no phase read).
+template <class T>
+void step_typed(Fluid& fluid) {
+  if (fluid.params().phase_taus.empty())
+    step_with_phases<T, false>(fluid);
+  else
+    step_with_phases<T, true>(fluid);
 }
 
 }  // namespace

@@ -55,6 +55,8 @@ struct StepContext {
   T *ux, *uy, *uz;
   T* wall_rho;  // AA with walls: rho of layer y = 0 (first nx nz) and y = ny - 1 (next nx nz)
   detail::CollisionCoeffs<T> k;
+  const std::uint8_t* phase;           // per-node phase index (kPh only)
+  const detail::PhaseTable<T>* table;  // coefficients per phase (kPh only)
   WallTerms<T> wall;
 
   std::size_t row(int y, int z) const {
@@ -68,17 +70,18 @@ struct StepContext {
   const T* wall_term(int y) const { return y < 0 ? wall.lower : wall.upper; }
 };
 
-template <class T, bool kForce, bool kVel>
+template <class T, bool kForce, bool kVel, bool kPh>
 CELLFLOW_LB_INLINE void collide(const StepContext<T>& c, const T* const* in, T* const* out, int n,
                                 std::size_t at, T* rho) {
-  detail::collide_run<T, kForce, kVel>(in, out, n, kForce ? c.fx + at : nullptr, kForce ? c.fy + at : nullptr,
-                                       kForce ? c.fz + at : nullptr, kVel ? c.ux + at : nullptr,
-                                       kVel ? c.uy + at : nullptr, kVel ? c.uz + at : nullptr, rho, c.k);
+  detail::collide_run<T, kForce, kVel, kPh>(
+      in, out, n, kForce ? c.fx + at : nullptr, kForce ? c.fy + at : nullptr, kForce ? c.fz + at : nullptr,
+      kVel ? c.ux + at : nullptr, kVel ? c.uy + at : nullptr, kVel ? c.uz + at : nullptr, rho, c.k,
+      kPh ? c.phase + at : nullptr, c.table);
 }
 
 // AA even step: purely local. Reads f_i(x) from slot i, writes f*_i(x) to slot
 // ibar of the same node; streaming happens in the next (odd) step's reads.
-template <class T, bool kForce, bool kVel>
+template <class T, bool kForce, bool kVel, bool kPh>
 CELLFLOW_LB_INLINE void row_aa_even(const StepContext<T>& c, int y, int z) {
   alignas(64) T rho[kChunk];
   const std::size_t row = c.row(y, z);
@@ -91,7 +94,7 @@ CELLFLOW_LB_INLINE void row_aa_even(const StepContext<T>& c, int y, int z) {
       in[q] = p;
       out[opposite(q)] = p;
     }
-    collide<T, kForce, kVel>(c, in, out, n, row + x0, rho);
+    collide<T, kForce, kVel, kPh>(c, in, out, n, row + x0, rho);
     // The next odd step bounces the wall populations back with this density;
     // the 19 values at a node belong to 19 different nodes by then.
     if (c.wall_row(y)) std::memcpy(c.wall_rho_row(y, z) + x0, rho, static_cast<std::size_t>(n) * sizeof(T));
@@ -114,7 +117,7 @@ struct RowScratch {
 // race-free. Links with an x component go through the run buffers (a gather
 // and a scatter with the periodic wrap): measured faster than shifted direct
 // access, whose vectors straddle cache lines, and with one set-up per run.
-template <class T, bool kForce, bool kVel>
+template <class T, bool kForce, bool kVel, bool kPh>
 CELLFLOW_LB_INLINE void aa_odd_run(const StepContext<T>& c, int y, int z, int x0, int n, RowScratch<T>& s) {
   const std::size_t at = c.row(y, z) + x0;
   // rho(x, t) of the previous (even) collision, saved by it.
@@ -148,7 +151,7 @@ CELLFLOW_LB_INLINE void aa_odd_run(const StepContext<T>& c, int y, int z, int x0
       out[q] = s.buf[q];
     }
   }
-  collide<T, kForce, kVel>(c, in, out, n, at, s.rho);
+  collide<T, kForce, kVel, kPh>(c, in, out, n, at, s.rho);
   for (int q = 1; q < kQ; ++q) {
     const int yd = y + kCy[q];
     if (c.in_wall(yd)) {
@@ -163,16 +166,16 @@ CELLFLOW_LB_INLINE void aa_odd_run(const StepContext<T>& c, int y, int z, int x0
   }
 }
 
-template <class T, bool kForce, bool kVel>
+template <class T, bool kForce, bool kVel, bool kPh>
 CELLFLOW_LB_INLINE void row_aa_odd(const StepContext<T>& c, int y, int z) {
   RowScratch<T> s;
   for (int x0 = 0; x0 < c.nx; x0 += kChunk)
-    aa_odd_run<T, kForce, kVel>(c, y, z, x0, std::min(kChunk, c.nx - x0), s);
+    aa_odd_run<T, kForce, kVel, kPh>(c, y, z, x0, std::min(kChunk, c.nx - x0), s);
 }
 
 // Two-array push step: reads f_i(x) locally from a, writes f*_i(x) to b at
 // x + c_i (or bounced back into slot ibar at x).
-template <class T, bool kForce, bool kVel>
+template <class T, bool kForce, bool kVel, bool kPh>
 CELLFLOW_LB_INLINE void two_array_run(const StepContext<T>& c, int y, int z, int x0, int n,
                                       RowScratch<T>& s) {
   const std::size_t at = c.row(y, z) + x0;
@@ -189,7 +192,7 @@ CELLFLOW_LB_INLINE void two_array_run(const StepContext<T>& c, int y, int z, int
       out[q] = s.buf[q];
     }
   }
-  collide<T, kForce, kVel>(c, in, out, n, at, s.rho);
+  collide<T, kForce, kVel, kPh>(c, in, out, n, at, s.rho);
   for (int q = 1; q < kQ; ++q) {
     const int yd = y + kCy[q];
     if (c.in_wall(yd)) {
@@ -204,26 +207,26 @@ CELLFLOW_LB_INLINE void two_array_run(const StepContext<T>& c, int y, int z, int
   }
 }
 
-template <class T, bool kForce, bool kVel>
+template <class T, bool kForce, bool kVel, bool kPh>
 CELLFLOW_LB_INLINE void row_two_array(const StepContext<T>& c, int y, int z) {
   RowScratch<T> s;
   for (int x0 = 0; x0 < c.nx; x0 += kChunk)
-    two_array_run<T, kForce, kVel>(c, y, z, x0, std::min(kChunk, c.nx - x0), s);
+    two_array_run<T, kForce, kVel, kPh>(c, y, z, x0, std::min(kChunk, c.nx - x0), s);
 }
 
 enum class Phase { kAAEven, kAAOdd, kTwoArray };
 
 // Rows r0 <= r < r1 (r = y + ny z) of one step.
-template <class T, bool kForce, bool kVel, Phase kPhase>
+template <class T, bool kForce, bool kVel, bool kPh, Phase kPhase>
 CELLFLOW_LB_INLINE void process_rows(const StepContext<T>& c, std::int64_t r0, std::int64_t r1) {
   for (std::int64_t r = r0; r < r1; ++r) {
     const int y = static_cast<int>(r % c.ny), z = static_cast<int>(r / c.ny);
     if constexpr (kPhase == Phase::kAAEven)
-      row_aa_even<T, kForce, kVel>(c, y, z);
+      row_aa_even<T, kForce, kVel, kPh>(c, y, z);
     else if constexpr (kPhase == Phase::kAAOdd)
-      row_aa_odd<T, kForce, kVel>(c, y, z);
+      row_aa_odd<T, kForce, kVel, kPh>(c, y, z);
     else
-      row_two_array<T, kForce, kVel>(c, y, z);
+      row_two_array<T, kForce, kVel, kPh>(c, y, z);
   }
 }
 

@@ -34,26 +34,27 @@
 #include "physics/core/violations.h"
 #include "physics/mesh/tet_mesh.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
+#include "physics/scenes/suspension/placement.h"
 #include "physics/units/units.h"
 
 namespace cellflow::scenes {
 
-// A centre (box coordinates, metres) and a rotation vector (axis x angle,
-// radians) of the cell's mesh about its centre.
-struct CellPlacement {
-  std::array<double, 3> centre_m{};
-  std::array<double, 3> rotation_rad{};
-};
+// CellPlacement (a centre and a rotation vector): placement.h.
 
 // Default mesh of a suspended cell (smaller than the single-cell default:
 // N cells share the step).
 inline constexpr int kSuspensionDefaultVertexCount = 1000;
+inline cell::CellParams suspension_cell_defaults() {
+  cell::CellParams cell;
+  cell.target_vertex_count = kSuspensionDefaultVertexCount;
+  return cell;
+}
 
 // One kind of cell; exactly one of count > 0, volume_fraction > 0 or
 // placements non-empty.
 struct SuspendedCellKind {
-  cell::CellParams cell;         // target_vertex_count default kSuspensionDefaultVertexCount
-  double viscosity_ratio = 1.0;  // lambda = eta_in / eta_out in [0.01, 100]
+  cell::CellParams cell = suspension_cell_defaults();  // target_vertex_count kSuspensionDefaultVertexCount
+  double viscosity_ratio = 1.0;                        // lambda = eta_in / eta_out in [0.01, 100]
   int count = 0;
   double volume_fraction = 0.0;  // N = round(phi V_box / (4/3 pi R^3)), in (0, 0.5]
   std::vector<CellPlacement> placements;
@@ -116,7 +117,7 @@ class PlannedSuspension {
   PlannedSuspension() = default;
   SuspensionParams params_;
   SuspensionSetup setup_;
-  units::Units units_;
+  units::Units units_{1.0, 1.0, 1.0, 1.0};  // replaced by the plan
   std::vector<int> cell_kinds_;
   std::vector<CellPlacement> placements_;
 };

@@ -5,6 +5,7 @@
 #include "jobs/fit/fit_job.h"
 #include "jobs/quasi_static/quasi_static_job.h"
 #include "jobs/shear_flow/shear_flow_job.h"
+#include "jobs/suspension/suspension_job.h"
 
 namespace cellflow::jobs {
 namespace {
@@ -16,6 +17,7 @@ constexpr SceneEntry kScenes[] = {
     {v1::JobSpec::kIndentation, "indentation", &prepare_indentation},
     {v1::JobSpec::kShearFlow, "shear_flow", &prepare_shear_flow},
     {v1::JobSpec::kFit, "fit", &prepare_fit},
+    {v1::JobSpec::kSuspension, "suspension", &prepare_suspension},
 };
 
 }  // namespace

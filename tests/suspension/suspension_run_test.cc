@@ -236,6 +236,33 @@ TEST(SuspensionRun, ViscosityRatioMarksTheCellAndChangesTheFlow) {
   EXPECT_GT(std::abs(d_contrast - d_plain), 0.005 * d_plain);
 }
 
+// target_standard_error: the run stops (kSteady) at the first sample where
+// the block-averaged standard error of the mean D, over at least 32 samples
+// after average_after_strain, is below the target relative to the mean.
+TEST(SuspensionRun, StopsAtTheTargetStandardError) {
+  SuspensionParams p = collision_params();
+  p.numerics.flow.sample_every_strain = 0.02;
+  p.numerics.flow.snapshot_every_strain = 0.0;
+  p.numerics.average_after_strain = 0.2;
+  p.numerics.target_standard_error = 0.05;
+  StatusOr<PlannedSuspension> planned = plan_suspension_run(p);
+  ASSERT_TRUE(planned.ok()) << planned.status().to_string();
+  const SuspensionResult r = run_suspension(*planned);
+  ASSERT_TRUE(r.status.ok()) << r.status.to_string();
+  EXPECT_EQ(r.stop, ShearFlowStop::kSteady);
+  ASSERT_FALSE(r.samples.empty());
+  const SuspensionSample& last = r.samples.back();
+  EXPECT_LT(last.strain_units, p.numerics.flow.max_strain);
+  EXPECT_LT(r.average_taylor_deformation_error, 0.05 * r.average_taylor_deformation);
+  int averaged = 0;
+  for (const SuspensionSample& s : r.samples) averaged += s.strain_units >= 0.2 - 1e-9;
+  EXPECT_GE(averaged, 32);
+  // The sample before the last had not reached it (or too few samples).
+  const SuspensionSample& before = r.samples[r.samples.size() - 2];
+  EXPECT_TRUE(averaged == 32 ||
+              !(before.average_taylor_deformation_error < 0.05 * before.average_taylor_deformation));
+}
+
 TEST(SuspensionRun, RandomPlacementRunsAndStopsOnRequest) {
   SuspensionParams p = collision_params();
   p.kinds[0].placements.clear();

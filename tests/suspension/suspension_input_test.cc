@@ -60,7 +60,18 @@ TEST(SuspensionPlan, BadViscosityRatioNamesTheField) {
     p.kinds[0].viscosity_ratio = lambda;
     expect_refused(p, "suspension.kinds[0].viscosity_ratio");
   }
-  p.kinds[0].viscosity_ratio = 0.05;  // in range, but the marking is not in this build
+  p.kinds[0].viscosity_ratio = 0.05;  // in range: planned, with the marking's memory
+  const StatusOr<PlannedSuspension> contrast = plan_suspension_run(p);
+  ASSERT_TRUE(contrast.ok()) << contrast.status().to_string();
+  p.kinds[0].viscosity_ratio = 1.0;
+  const StatusOr<PlannedSuspension> plain = plan_suspension_run(p);
+  ASSERT_TRUE(plain.ok());
+  const ShearFlowSetup& f = plain->setup().flow;
+  EXPECT_EQ(contrast->setup().memory_bytes - plain->setup().memory_bytes,
+            static_cast<std::size_t>(f.nx) * f.ny * f.nz * 5);
+  // tau_in = 1/2 + lambda (tau - 1/2) below the stable 0.505.
+  p.kinds[0].viscosity_ratio = 0.02;
+  p.numerics.flow.relaxation_time = 0.6;
   expect_refused(p, "suspension.kinds[0].viscosity_ratio");
 }
 

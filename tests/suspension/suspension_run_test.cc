@@ -203,6 +203,66 @@ TEST(SuspensionRun, RepulsionActsInACollisionAndKeepsThemApart) {
   EXPECT_GT(collide_and_pass(2.0), 0) << "the repulsion never acted";
 }
 
+// Viscosity contrast wired in: with lambda = 0.05 the nodes inside the cell
+// are marked (and relaxed with tau_in = 1/2 + lambda (tau - 1/2)), and the
+// deformation after one strain unit differs from lambda = 1's; with lambda =
+// 1 nothing is marked. (Which way D moves is the single-cell validation of
+// the viscosity contrast; at this coarse setting lambda = 0.05 gives the
+// smaller D, see the report.)
+TEST(SuspensionRun, ViscosityRatioMarksTheCellAndChangesTheFlow) {
+  auto d_after_one_strain = [](double lambda, double* marking_s) {
+    SuspensionParams p = collision_params();
+    p.kinds[0].placements = {{{4.0 * 6e-6, 3.5 * 6e-6, 1.75 * 6e-6}, {}}};
+    p.kinds[0].viscosity_ratio = lambda;
+    p.numerics.flow.max_strain = 1.0;
+    p.numerics.flow.snapshot_every_strain = 0.0;
+    p.numerics.average_after_strain = 0.5;
+    StatusOr<PlannedSuspension> planned = plan_suspension_run(p);
+    EXPECT_TRUE(planned.ok()) << planned.status().to_string();
+    if (!planned.ok()) return 0.0;
+    const SuspensionResult r = run_suspension(*planned);
+    EXPECT_TRUE(r.status.ok()) << r.status.to_string();
+    *marking_s = r.marking_s;
+    return r.samples.empty() ? 0.0 : r.samples.back().mean_taylor_deformation;
+  };
+  double marking_plain = -1.0, marking_contrast = -1.0;
+  const double d_plain = d_after_one_strain(1.0, &marking_plain);
+  const double d_contrast = d_after_one_strain(0.05, &marking_contrast);
+  std::printf("D after one strain unit: lambda 1 %.4f, lambda 0.05 %.4f (marking %.2f s)\n", d_plain,
+              d_contrast, marking_contrast);
+  EXPECT_EQ(marking_plain, 0.0);
+  EXPECT_GT(marking_contrast, 0.0);
+  EXPECT_GT(d_plain, 0.02);
+  EXPECT_GT(std::abs(d_contrast - d_plain), 0.005 * d_plain);
+}
+
+// target_standard_error: the run stops (kSteady) at the first sample where
+// the block-averaged standard error of the mean D, over at least 32 samples
+// after average_after_strain, is below the target relative to the mean.
+TEST(SuspensionRun, StopsAtTheTargetStandardError) {
+  SuspensionParams p = collision_params();
+  p.numerics.flow.sample_every_strain = 0.02;
+  p.numerics.flow.snapshot_every_strain = 0.0;
+  p.numerics.average_after_strain = 0.2;
+  p.numerics.target_standard_error = 0.05;
+  StatusOr<PlannedSuspension> planned = plan_suspension_run(p);
+  ASSERT_TRUE(planned.ok()) << planned.status().to_string();
+  const SuspensionResult r = run_suspension(*planned);
+  ASSERT_TRUE(r.status.ok()) << r.status.to_string();
+  EXPECT_EQ(r.stop, ShearFlowStop::kSteady);
+  ASSERT_FALSE(r.samples.empty());
+  const SuspensionSample& last = r.samples.back();
+  EXPECT_LT(last.strain_units, p.numerics.flow.max_strain);
+  EXPECT_LT(r.average_taylor_deformation_error, 0.05 * r.average_taylor_deformation);
+  int averaged = 0;
+  for (const SuspensionSample& s : r.samples) averaged += s.strain_units >= 0.2 - 1e-9;
+  EXPECT_GE(averaged, 32);
+  // The sample before the last had not reached it (or too few samples).
+  const SuspensionSample& before = r.samples[r.samples.size() - 2];
+  EXPECT_TRUE(averaged == 32 ||
+              !(before.average_taylor_deformation_error < 0.05 * before.average_taylor_deformation));
+}
+
 TEST(SuspensionRun, RandomPlacementRunsAndStopsOnRequest) {
   SuspensionParams p = collision_params();
   p.kinds[0].placements.clear();

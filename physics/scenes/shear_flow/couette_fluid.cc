@@ -7,7 +7,8 @@
 namespace cellflow::scenes {
 
 StatusOr<lb::Fluid> make_couette_fluid(const ShearFlowSetup& setup, const units::Units& u,
-                                       const ShearFlowNumerics& n, std::string_view field_prefix) {
+                                       const ShearFlowNumerics& n, std::string_view field_prefix,
+                                       const std::vector<double>& phase_taus) {
   const double u_wall_lb = u.velocity_to_lattice(setup.wall_speed_m_per_s);
   lb::FluidParams fp;
   fp.nx = setup.nx;
@@ -21,6 +22,7 @@ StatusOr<lb::Fluid> make_couette_fluid(const ShearFlowSetup& setup, const units:
   fp.velocity_field = true;
   fp.precision = n.single_precision ? lb::Precision::kFloat : lb::Precision::kDouble;
   fp.threads = n.threads;
+  fp.phase_taus = phase_taus;
   StatusOr<lb::Fluid> fluid = lb::make_fluid(fp);
   if (!fluid.ok()) {
     return Status(fluid.status().code(), std::string(field_prefix) + "numerics: " + fluid.status().message());

@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <string_view>
+#include <vector>
 
 #include "physics/core/status.h"
 #include "physics/lb/fluid.h"
@@ -15,9 +16,12 @@
 namespace cellflow::scenes {
 
 // The lattice of `setup` (nodes, wall speed) with the force and velocity
-// fields the coupling needs; errors prefixed with field_prefix + "numerics: ".
+// fields the coupling needs, and a phase field with these relaxation times
+// when phase_taus is not empty (lb::FluidParams::phase_taus); errors
+// prefixed with field_prefix + "numerics: ".
 StatusOr<lb::Fluid> make_couette_fluid(const ShearFlowSetup& setup, const units::Units& units,
-                                       const ShearFlowNumerics& numerics, std::string_view field_prefix);
+                                       const ShearFlowNumerics& numerics, std::string_view field_prefix,
+                                       const std::vector<double>& phase_taus = {});
 
 // Sets the populations to the equilibrium of the steady Couette profile
 // u_x(y) = u_wall (2 y / H - 1) (nodes at y = j + 1/2) and writes the velocity field.

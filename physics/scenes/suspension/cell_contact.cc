@@ -94,8 +94,11 @@ RepulsionReport RepulsionSearch::add_forces(std::span<const ContactCell> cells) 
         if (cj == ci) continue;
         const double* xj = &wrapped_[3 * j];
         double r[3] = {xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]};
-        r[0] -= lx * std::round(r[0] / lx);  // minimum image
-        r[2] -= lz * std::round(r[2] / lz);
+        // Minimum image (both positions wrapped into [0, L), so |r| < L).
+        if (r[0] > 0.5 * lx) r[0] -= lx;
+        if (r[0] < -0.5 * lx) r[0] += lx;
+        if (r[2] > 0.5 * lz) r[2] -= lz;
+        if (r[2] < -0.5 * lz) r[2] += lz;
         const double d2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
         if (d2 >= rc * rc) continue;
         const double d = std::sqrt(d2);

@@ -4,6 +4,12 @@
 // snapshots. Plan and placement: suspension_plan.cc; contact:
 // cell_contact.h; statistics: suspension_statistics.h.
 //
+// Viscosity contrast: with a kind of viscosity_ratio lambda != 1 the lattice
+// has a phase per distinct lambda (tau_in = 1/2 + lambda (tau - 1/2)) and the
+// nodes inside each cell are marked (physics/marking: exact at the start, the
+// fast band update every numerics.marking_every_steps steps after the
+// vertices moved); with every lambda = 1 nothing is marked.
+//
 // No checkpointing: a suspension run starts from step 0 every time (its
 // state would be every cell's vertices and the lattice, as in the single-cell
 // scene; not written yet).
@@ -13,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -22,6 +29,7 @@
 #include "physics/elastic/elastic_body.h"
 #include "physics/elastic/material.h"
 #include "physics/lb/fluid.h"
+#include "physics/marking/marking.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
@@ -76,6 +84,9 @@ struct Run {
   std::vector<double> mean_d_series, viscosity_series;  // after average_after_strain
   int snapshot_index = 0;
   int last_contact_pairs = 0;
+  // Viscosity contrast (empty / null without): the phase of each cell.
+  std::vector<std::uint8_t> phase_of_cell;
+  marking::NodeMarking* marking = nullptr;
 };
 
 std::string where(const PlannedSuspension& planned, std::int64_t step) {
@@ -299,6 +310,15 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
       }
     }
 
+    if (run.marking != nullptr && step % sn.marking_every_steps == 0) {
+      const auto tm = Clock::now();
+      marking::update_marking(*run.marking, cells);
+      if (Status st = marking::apply_phases(*run.marking, run.phase_of_cell, fluid); !st.ok()) {
+        fail(step, "marking: " + st.message());
+        return;
+      }
+      result.marking_s += seconds_since(tm);
+    }
     const bool sample_step = step % sample_steps == 0;
     if (sample_step) {
       const auto ts = Clock::now();
@@ -395,7 +415,22 @@ SuspensionResult run_suspension(const PlannedSuspension& planned, const Suspensi
   kind_meshes.clear();
 
   const ShearFlowSetup& setup = planned.setup().flow;
-  StatusOr<lb::Fluid> fluid = make_couette_fluid(setup, u, n, prefix);
+  // One phase per distinct lambda != 1 (phase 0: the suspending fluid).
+  std::vector<double> phase_lambdas, phase_taus;
+  std::vector<std::uint8_t> phase_of_kind(params.kinds.size(), 0);
+  for (std::size_t k = 0; k < params.kinds.size(); ++k) {
+    const double lambda = params.kinds[k].viscosity_ratio;
+    if (lambda == 1.0) continue;
+    auto it = std::find(phase_lambdas.begin(), phase_lambdas.end(), lambda);
+    if (it == phase_lambdas.end()) {
+      phase_lambdas.push_back(lambda);
+      // tau_in - 1/2 = lambda (tau - 1/2)
+      phase_taus.push_back(lb::tau_for_viscosity_ratio(n.relaxation_time, lambda));
+      it = phase_lambdas.end() - 1;
+    }
+    phase_of_kind[k] = static_cast<std::uint8_t>(1 + (it - phase_lambdas.begin()));
+  }
+  StatusOr<lb::Fluid> fluid = make_couette_fluid(setup, u, n, prefix, phase_taus);
   if (!fluid.ok()) {
     result.status = fluid.status();
     return result;
@@ -422,6 +457,30 @@ SuspensionResult run_suspension(const PlannedSuspension& planned, const Suspensi
     }
     // s = 1 - offset dx / R (numerics.flow.hydrodynamic_radius_offset).
     cell.marker_scale = 1.0 - radius_offset(n) * u.dx_m() / kind.radius_m;
+  }
+
+  std::optional<marking::NodeMarking> node_marking;
+  if (!phase_taus.empty()) {
+    const auto tm = std::chrono::steady_clock::now();
+    for (int kind : run.cell_kind) run.phase_of_cell.push_back(phase_of_kind[kind]);
+    marking::MarkingParams mp;
+    // The band must exceed the surface displacement between two updates
+    // (at most the wall speed per step); the update falls back to the exact
+    // test of a cell that moved farther.
+    const double u_wall_lb = u.velocity_to_lattice(setup.wall_speed_m_per_s);
+    mp.band_lattice = std::clamp(1.0 + 2.0 * u_wall_lb * params.numerics.marking_every_steps, 1.0, 8.0);
+    StatusOr<marking::NodeMarking> made = marking::make_marking(run.cells, *fluid, mp);
+    if (!made.ok()) {
+      result.status = Status(made.status().code(), prefix + "numerics.marking: " + made.status().message());
+      return result;
+    }
+    node_marking = std::move(*made);
+    if (Status st = marking::apply_phases(*node_marking, run.phase_of_cell, *fluid); !st.ok()) {
+      result.status = st;
+      return result;
+    }
+    run.marking = &*node_marking;
+    result.marking_s += seconds_since(tm);
   }
 
   if (n.single_precision) {

@@ -16,6 +16,11 @@
 //     cell-free value; time averages after a transient with block-averaged
 //     standard errors; contact counts.
 //
+// Implementation: suspension_plan.cc (validation, plan, placement via
+// placement.h), suspension.cc (time loop), cell_contact.h (repulsion),
+// suspension_statistics.h (block averages). No checkpointing: a run always
+// starts from step 0.
+//
 // SI at this interface; lattice units only inside, converted through
 // physics/units. This header is the contract between the scene (physics)
 // and its job (jobs/suspension); fields may be added, none removed.
@@ -86,9 +91,10 @@ struct SuspensionParams {
 };
 
 // Every field out of range, named relative to the params
-// ("kinds[1].viscosity_ratio", "numerics.contact_range_dx",
-// "kinds[0].placements[3]" for an overlapping or outside place) with its
-// allowed range. Does not mesh or place.
+// ("kinds[1].viscosity_ratio", "numerics.contact_range_dx", a non-finite
+// "kinds[0].placements[3]") with its allowed range. Does not mesh or place:
+// an overlapping or outside place needs the lattice's box and is refused by
+// plan_suspension_run ("suspension.kinds[0].placements[3]").
 Violations violations(const SuspensionParams& params);
 Status validate(const SuspensionParams& params, std::string_view field_prefix = "suspension.");
 

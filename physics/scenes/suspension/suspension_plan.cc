@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "physics/ibm/ibm.h"
+#include "physics/lb/fluid.h"
 #include "physics/mesh/tet_mesh.h"
 #include "physics/scenes/suspension/placement.h"
 #include "physics/scenes/suspension/suspension.h"
@@ -112,11 +113,15 @@ Violations violations(const SuspensionParams& params) {
     if (!(kind.viscosity_ratio >= 0.01 && kind.viscosity_ratio <= 100.0)) {
       v.add(name + "viscosity_ratio",
             "= " + number_text(kind.viscosity_ratio, 6) + " must lie in [0.01, 100] (eta_in / eta_out)");
-    } else if (kind.viscosity_ratio != 1.0) {
+    } else if (const double tau = params.numerics.flow.relaxation_time;
+               tau > 0.5 && tau <= 3.0 &&
+               !(lb::tau_for_viscosity_ratio(tau, kind.viscosity_ratio) >= lb::kMinStableTau)) {
+      // tau_in - 1/2 = lambda (tau - 1/2)
       v.add(name + "viscosity_ratio",
-            "= " + number_text(kind.viscosity_ratio, 6) +
-                ": a viscosity contrast (lambda != 1) is not available in this build yet (the marking of the "
-                "lattice nodes inside the cells is missing); only 1 runs");
+            "= " + number_text(kind.viscosity_ratio, 6) + " gives the inner relaxation time " +
+                number_text(lb::tau_for_viscosity_ratio(tau, kind.viscosity_ratio), 6) +
+                " = 1/2 + lambda (tau - 1/2), below " + number_text(lb::kMinStableTau) +
+                " (unstable): raise numerics.flow.relaxation_time or lambda");
     }
     const int given = (kind.count != 0) + (kind.volume_fraction != 0.0) + (!kind.placements.empty());
     if (given != 1) {
@@ -249,8 +254,16 @@ StatusOr<PlannedSuspension> plan_suspension_run(const SuspensionParams& params,
   }
   setup.cell_count = total;
   setup.volume_fraction = cell_volume / box_volume;
-  // Lattice + cells + the contact search (per surface vertex: bins, order, wrapped positions).
+  // Lattice + cells + the contact search (per surface vertex: bins, order,
+  // wrapped positions); with a viscosity contrast the marking (an owner index
+  // and a phase byte per node).
   setup.memory_bytes = setup.flow.lattice_bytes + mesh_bytes + cell_bytes + cell_bytes / 8;
+  bool contrast = false;
+  for (const SuspendedCellKind& kind : params.kinds) contrast = contrast || kind.viscosity_ratio != 1.0;
+  if (contrast) {
+    setup.memory_bytes += static_cast<std::size_t>(setup.flow.nx) * setup.flow.ny * setup.flow.nz *
+                          (sizeof(std::int32_t) + sizeof(std::uint8_t));
+  }
   if (Status s = units::check_memory(setup.memory_bytes, fn.memory_limit_bytes, prefix + "numerics.flow.");
       !s.ok()) {
     return s;

@@ -155,6 +155,17 @@ TEST(SuspensionSpec, ZeroOrNegativeViscosityRatioIsRefusedNamingTheKind) {
         << lambda << ": " << message;
     EXPECT_EQ(message.find("kinds["), std::string::npos) << message;  // the proto's name, not the struct's
   }
+  // The near-elastic limit of the paper (lambda = 0.05) in the second kind is accepted.
+  v1::JobSpec contrast = suspension_of(2);
+  *contrast.mutable_suspension()->add_cells() = contrast.suspension().cells(0);
+  contrast.mutable_suspension()->mutable_cells(1)->set_viscosity_ratio(0.05);
+  const SceneRegistry registry;
+  auto prepared = registry.prepare(contrast);
+  ASSERT_TRUE(prepared.ok()) << prepared.status().to_string();
+  StatusOr<scenes::PlannedSuspension> planned = plan(contrast.suspension());
+  ASSERT_TRUE(planned.ok());
+  EXPECT_EQ(planned->params().kinds[1].viscosity_ratio, 0.05);
+  EXPECT_EQ(planned->cell_kinds(), (std::vector<int>{0, 0, 1, 1}));
 }
 
 TEST(SuspensionSpec, PlacementsThatOverlapOrLeaveTheBoxAreRefusedNamingThePlace) {

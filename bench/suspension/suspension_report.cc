@@ -5,7 +5,7 @@
 // same Ca and the rigid-sphere viscosity 1 + 2.5 phi + 6.2 phi^2.
 //   suspension_report out=report.md phis=0.11,0.22 cas=0.1,0.2,0.4 lambdas=1
 //                     cpr=6 vertices=1000 max_strain=20 average_after=5 single=1
-//                     seed=1 threads=1 box=5,8,4
+//                     seed=1 threads=1 box=5,8,4 target_se=0 (> 0: stop at this relative SE of mean D)
 // lambdas other than 1 need the viscosity contrast (refused until it lands).
 #include <cstdio>
 #include <cstdlib>
@@ -106,6 +106,7 @@ int main(int argc, char** argv) {
         f.snapshot_every_strain = 0.0;
         f.threads = threads;
         p.numerics.average_after_strain = average_after;
+        p.numerics.target_standard_error = get("target_se", 0.0);
         p.numerics.seed = static_cast<std::uint64_t>(get("seed", 1));
         StatusOr<scenes::PlannedSuspension> planned = scenes::plan_suspension_run(p);
         char line[1024];

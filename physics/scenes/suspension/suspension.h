@@ -71,12 +71,14 @@ struct SuspensionNumerics {
   // max_strain 20 (suspension_numerics_defaults()).
   ShearFlowNumerics flow;
   std::uint64_t seed = 1;
-  double contact_range_dx = 1.0;       // repulsion range, lattice spacings, (0, 4]
-  double contact_strength = 1.0;       // at zero gap, x mu dx^2 of the cell, (0, 1e3]
-  double average_after_strain = 5.0;   // time averages start here, >= 0
-  double target_standard_error = 0.0;  // > 0: stop at this relative SE of mean D; 0 off
-  int marking_every_steps = 1;         // [1, 1000]
-  double min_gap_dx = 1.0;             // placement gap, lattice spacings, [0, 10]
+  double contact_range_dx = 1.0;      // repulsion range, lattice spacings, (0, 4]
+  double contact_strength = 1.0;      // at zero gap, x mu dx^2 of the cell, (0, 1e3]
+  double average_after_strain = 5.0;  // time averages start here, >= 0
+  // > 0: stop (ShearFlowStop::kSteady) at the first sample where the block-averaged SE of the
+  // mean D, over at least 32 samples after average_after_strain, is below this fraction of it; 0 off.
+  double target_standard_error = 0.0;
+  int marking_every_steps = 1;  // [1, 1000]
+  double min_gap_dx = 1.0;      // placement gap, lattice spacings, [0, 10]
 };
 SuspensionNumerics suspension_numerics_defaults();
 

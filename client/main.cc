@@ -22,6 +22,7 @@
 #include "client/spec_arg.h"
 #include "client/study_output.h"
 #include "client/suggest.h"
+#include "client/suspension_output.h"
 #include "client/version.h"
 #include "client/watch_printer.h"
 #include "io/xdmf.h"
@@ -125,21 +126,23 @@ int watch(client::Client& client, const std::string& job_id, std::int64_t after,
 // The server reads no file a spec names: a cell's mesh_file (from --mesh-file
 // or a JSON spec) is read here, uploaded, and replaced by its hash.
 int upload_mesh_file(client::Client& client, v1::JobSpec& spec) {
-  v1::CellSpec* cell = jobs::mutable_scene_cell(spec);  // whichever scene holds a cell
-  if (cell == nullptr || cell->mesh_file().empty()) return ExitCode::kExitOk;
-  std::ifstream in(cell->mesh_file(), std::ios::binary);
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  if (!in && !in.eof()) {
-    std::fprintf(stderr, "cellflow: cannot read the mesh file %s\n", cell->mesh_file().c_str());
-    return ExitCode::kExitInvalidArgument;
+  for (const jobs::SceneCell& scene_cell : jobs::scene_cells(spec)) {  // every cell of whichever scene
+    v1::CellSpec* cell = scene_cell.cell;
+    if (cell->mesh_file().empty()) continue;
+    std::ifstream in(cell->mesh_file(), std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    if (!in && !in.eof()) {
+      std::fprintf(stderr, "cellflow: cannot read the mesh file %s\n", cell->mesh_file().c_str());
+      return ExitCode::kExitInvalidArgument;
+    }
+    v1::MeshRef ref;
+    const std::string name = std::filesystem::path(cell->mesh_file()).filename().string();
+    const grpc::Status status = client.upload_mesh(bytes.str(), name, &ref);
+    if (!status.ok()) return report_error(status, "upload mesh " + cell->mesh_file());
+    cell->clear_mesh_file();
+    cell->set_mesh_sha256(ref.sha256());
   }
-  v1::MeshRef ref;
-  const std::string name = std::filesystem::path(cell->mesh_file()).filename().string();
-  const grpc::Status status = client.upload_mesh(bytes.str(), name, &ref);
-  if (!status.ok()) return report_error(status, "upload mesh " + cell->mesh_file());
-  cell->clear_mesh_file();
-  cell->set_mesh_sha256(ref.sha256());
   return ExitCode::kExitOk;
 }
 
@@ -384,6 +387,7 @@ int plot_study(client::Client& client, const v1::Job& study_job, const std::stri
   std::vector<client::LabelledCurve> curves;
   std::vector<client::SweptSteadyPoint> swept;
   std::vector<client::SteadyPoint> by_ca;
+  std::vector<client::SuspensionPoint> suspensions;
   const std::string first_path = study.axes_size() > 0 ? study.axes(0).path() : "";
   const bool against_ca = first_path.ends_with("capillaryNumber") || first_path.ends_with("capillary_number");
   bool flow = false;
@@ -400,7 +404,19 @@ int plot_study(client::Client& client, const v1::Job& study_job, const std::stri
     if (grpc::Status status = client.download(child.id(), temporary.path); !status.ok())
       return report_error(status, "result " + child.id());
     const std::string label = point_label(study, child.child_index());
-    if (client::is_flow_result(temporary.path)) {
+    if (client::is_suspension_result(temporary.path)) {
+      auto point = client::read_suspension_point(temporary.path, label);
+      if (!point.ok()) {
+        std::fprintf(stderr, "cellflow: %s: %s\n", child.id().c_str(), point.status().to_string().c_str());
+        return ExitCode::kExitNotFound;
+      }
+      std::printf("%s  %s  Ca %.6g  phi %.4g  mean D %.6g +- %.2g  relative viscosity %.6g +- %.2g  (%s)\n",
+                  child.id().c_str(), label.c_str(), point->capillary_number, point->volume_fraction,
+                  point->average_taylor_deformation, point->average_taylor_deformation_error,
+                  point->average_relative_viscosity, point->average_relative_viscosity_error,
+                  point->stop.c_str());
+      suspensions.push_back(std::move(*point));
+    } else if (client::is_flow_result(temporary.path)) {
       flow = true;
       auto point = client::read_steady_point(temporary.path, label);
       if (!point.ok()) {
@@ -422,15 +438,19 @@ int plot_study(client::Client& client, const v1::Job& study_job, const std::stri
       curves.push_back({label, std::move(*curve)});
     }
   }
-  if (curves.empty() && swept.empty()) {
+  if (curves.empty() && swept.empty() && suspensions.empty()) {
     std::fprintf(stderr, "cellflow: %s has no succeeded child to plot\n", study_job.id().c_str());
     return ExitCode::kExitNotFound;
   }
   const std::string title =
       study_job.id() + " (study of " + std::to_string(study_job.child_count()) + " children)";
-  const std::string text = !flow        ? client::curves_overlay_svg(curves, title)
-                           : against_ca ? client::steady_deformation_svg(by_ca, title)
-                                        : client::swept_steady_svg(swept, first_path, title);
+  // A suspension study: against Ca (a study axis cannot index a kind's volume fraction).
+  const std::string text =
+      !suspensions.empty()
+          ? client::suspension_points_svg(suspensions, client::SuspensionAxis::kCapillaryNumber, title)
+      : !flow      ? client::curves_overlay_svg(curves, title)
+      : against_ca ? client::steady_deformation_svg(by_ca, title)
+                   : client::swept_steady_svg(swept, first_path, title);
   if (!client::write_output(output, text)) {
     std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
     return ExitCode::kExitUsage;
@@ -702,12 +722,17 @@ int main(int argc, char** argv) {
   auto* plot = app.add_subcommand(
       "plot",
       "draw a job's result as SVG: force against deformation with Hertz (compression, indentation), D "
-      "against strain (shear flow); with --against capillary-number the steady D of several shear-flow "
-      "jobs against Ca beside Roscoe's theory");
+      "against strain (shear flow), mean D against strain with the band over the cells (suspension); with "
+      "--against capillary-number the steady D of several shear-flow jobs against Ca beside Roscoe's theory, "
+      "or of several suspension jobs the averaged mean D and relative viscosity against Ca or "
+      "(--against volume-fraction) the volume fraction");
   plot->add_option("jobs", plot_jobs, "job id(s)")->required();
   plot->add_option("-o,--output", output, "SVG file (.svg), - for stdout")->required();
-  plot->add_option("--against", against, "steady D of the given shear-flow jobs against this quantity")
-      ->check(CLI::IsMember({"capillary-number"}));
+  plot->add_option(
+          "--against", against,
+          "steady D (shear flow) or averaged mean D and relative viscosity (suspension) of the given "
+          "jobs against this quantity (volume-fraction: suspensions only)")
+      ->check(CLI::IsMember({"capillary-number", "volume-fraction"}));
 
   FitFlags fit_flags;
   auto* fit_cmd = app.add_subcommand(
@@ -956,7 +981,8 @@ int main(int argc, char** argv) {
 
   if (plot->parsed()) {
     if (plot_jobs.size() > 1 && against.empty()) {
-      std::fprintf(stderr, "cellflow: plot of several jobs needs --against capillary-number\n");
+      std::fprintf(stderr,
+                   "cellflow: plot of several jobs needs --against capillary-number (or volume-fraction)\n");
       return ExitCode::kExitUsage;
     }
     job_id = plot_jobs.front();
@@ -970,6 +996,7 @@ int main(int argc, char** argv) {
 
   if (plot->parsed() && !against.empty()) {
     std::vector<client::SteadyPoint> points;
+    std::vector<client::SuspensionPoint> suspensions;
     for (const std::string& id : plot_jobs) {
       TemporaryResult temporary;
       temporary.path =
@@ -977,12 +1004,53 @@ int main(int argc, char** argv) {
               .string();
       const grpc::Status status = client.download(id, temporary.path);
       if (!status.ok()) return report_error(status, "result " + id);
+      if (client::is_suspension_result(temporary.path)) {
+        auto point = client::read_suspension_point(temporary.path, id);
+        if (!point.ok()) {
+          std::fprintf(stderr, "cellflow: %s\n", point.status().to_string().c_str());
+          return ExitCode::kExitNotFound;
+        }
+        suspensions.push_back(std::move(*point));
+        continue;
+      }
+      if (against == "volume-fraction") {
+        std::fprintf(stderr,
+                     "cellflow: %s is not a suspension: --against volume-fraction plots suspensions\n",
+                     id.c_str());
+        return ExitCode::kExitUsage;
+      }
       auto point = client::read_steady_point(temporary.path, id);
       if (!point.ok()) {
         std::fprintf(stderr, "cellflow: %s\n", point.status().to_string().c_str());
         return ExitCode::kExitNotFound;
       }
       points.push_back(std::move(*point));
+    }
+    if (!suspensions.empty() && !points.empty()) {
+      std::fprintf(stderr, "cellflow: plot either shear-flow or suspension jobs together, not both\n");
+      return ExitCode::kExitUsage;
+    }
+    if (!suspensions.empty()) {
+      const auto axis = against == "volume-fraction" ? client::SuspensionAxis::kVolumeFraction
+                                                     : client::SuspensionAxis::kCapillaryNumber;
+      const std::string text = client::suspension_points_svg(
+          suspensions, axis,
+          "suspensions: mean D and relative viscosity against " +
+              std::string(axis == client::SuspensionAxis::kVolumeFraction ? "volume fraction" : "Ca") + " (" +
+              std::to_string(suspensions.size()) + " jobs)");
+      if (!client::write_output(output, text)) {
+        std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
+        return ExitCode::kExitUsage;
+      }
+      for (const auto& p : suspensions) {
+        std::fprintf(to_stdout ? stderr : stdout,
+                     "%s  Ca %.6g  phi %.4g  mean D %.6g +- %.2g  relative viscosity %.6g +- %.2g  (%s)\n",
+                     p.label.c_str(), p.capillary_number, p.volume_fraction, p.average_taylor_deformation,
+                     p.average_taylor_deformation_error, p.average_relative_viscosity,
+                     p.average_relative_viscosity_error, p.stop.c_str());
+      }
+      if (!to_stdout) std::printf("%s\n", output.c_str());
+      return ExitCode::kExitOk;
     }
     const std::string text = client::steady_deformation_svg(
         points, "steady deformation against capillary number (" + std::to_string(points.size()) + " jobs)");
@@ -1044,6 +1112,22 @@ int main(int argc, char** argv) {
       const std::string text = plot->parsed()
                                    ? client::fit_svg(*curves, job_id + " (fit: data, model, Hertz)")
                                    : client::fit_curves_csv(*curves);
+      if (!client::write_output(output, text)) {
+        std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
+        return ExitCode::kExitUsage;
+      }
+      if (!output.empty() && !to_stdout) std::printf("%s\n", output.c_str());
+      return ExitCode::kExitOk;
+    }
+    if (client::is_suspension_result(h5)) {
+      auto series = client::read_suspension_series(h5);
+      if (!series.ok()) {
+        std::fprintf(stderr, "cellflow: %s\n", series.status().to_string().c_str());
+        return ExitCode::kExitNotFound;
+      }
+      const std::string text =
+          plot->parsed() ? client::suspension_svg(*series, job_id + " (suspension: mean D over the cells)")
+                         : client::curve_csv(series->table);
       if (!client::write_output(output, text)) {
         std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
         return ExitCode::kExitUsage;

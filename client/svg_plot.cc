@@ -144,15 +144,20 @@ std::string svg_legend(const PlotFrame& frame, const std::vector<PlotSeries>& se
   const double lx = box_x + 8.0, ly = box_y + 16.0;
   return "<rect x=\"" + fixed(box_x, 1) + "\" y=\"" + fixed(box_y, 1) + "\" width=\"" +
          fixed(legend_box_width(series), 1) + "\" height=\"" +
-         fixed(22.0 * static_cast<double>(series.size()) + 8.0, 1) +
+         fixed(
+             22.0 * static_cast<double>(std::count_if(series.begin(), series.end(),
+                                                      [](const PlotSeries& s) { return !s.label.empty(); })) +
+                 8.0,
+             1) +
          "\" fill=\"white\" stroke=\"#999999\"/>\n" + svg_legend_entries(lx, ly, series);
 }
 
 std::string svg_legend_entries(double lx, double ly, const std::vector<PlotSeries>& series) {
   std::string svg;
-  for (std::size_t i = 0; i < series.size(); ++i) {
-    const PlotSeries& s = series[i];
-    const double y = ly + 22.0 * static_cast<double>(i);
+  std::size_t row = 0;
+  for (const PlotSeries& s : series) {
+    if (s.label.empty()) continue;  // drawn, not listed (e.g. the second edge of a band)
+    const double y = ly + 22.0 * static_cast<double>(row++);
     if (s.line) {
       svg += "<line x1=\"" + fixed(lx, 1) + "\" y1=\"" + fixed(y, 1) + "\" x2=\"" + fixed(lx + 30, 1) +
              "\" y2=\"" + fixed(y, 1) + "\" " + svg_stroke(s) + "/>\n";
@@ -182,9 +187,11 @@ std::string plot_svg(const std::string& title, const std::string& x_label, const
   const PlotFrame frame = frame_with_legend(series);
   double x_min = 0.0, x_max = x_hint, y_min = 0.0, y_max = y_hint;
   for (const PlotSeries& s : series) {
-    for (const auto& [x, y] : s.points) {
+    for (std::size_t i = 0; i < s.points.size(); ++i) {
+      const auto [x, y] = s.points[i];
+      const double e = i < s.errors.size() && std::isfinite(s.errors[i]) ? std::abs(s.errors[i]) : 0.0;
       if (std::isfinite(x)) x_min = std::min(x_min, x), x_max = std::max(x_max, x);
-      if (std::isfinite(y)) y_min = std::min(y_min, y), y_max = std::max(y_max, y);
+      if (std::isfinite(y)) y_min = std::min(y_min, y - e), y_max = std::max(y_max, y + e);
     }
   }
   const PlotAxis xa = nice_axis(x_min, x_max > x_min ? x_max : x_min + 1.0);
@@ -200,6 +207,13 @@ std::string plot_svg(const std::string& title, const std::string& x_label, const
       std::string points;
       for (const auto& [x, y] : s.points) points += fixed(px(x), 2) + "," + fixed(py(y), 2) + " ";
       svg += "<polyline fill=\"none\" " + svg_stroke(s) + " points=\"" + points + "\"/>\n";
+    }
+    for (std::size_t i = 0; i < s.points.size() && i < s.errors.size(); ++i) {
+      const double e = std::abs(s.errors[i]);
+      if (!(e > 0.0) || !std::isfinite(e)) continue;
+      const double x = px(s.points[i].first), y = s.points[i].second;
+      svg += "<line x1=\"" + fixed(x, 2) + "\" y1=\"" + fixed(py(y - e), 2) + "\" x2=\"" + fixed(x, 2) +
+             "\" y2=\"" + fixed(py(y + e), 2) + "\" stroke=\"" + s.color + "\" stroke-width=\"1.5\"/>\n";
     }
     if (s.markers) {
       for (std::size_t i = 0; i < s.points.size(); ++i) {

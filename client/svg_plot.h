@@ -73,11 +73,12 @@ std::string svg_axes(const PlotFrame& frame, const std::vector<double>& x_ticks,
 struct PlotSeries {
   std::vector<std::pair<double, double>> points;
   std::string color;
-  std::string dash;          // stroke-dasharray, "" = solid
-  bool line = true;          // draw the polyline
-  bool markers = false;      // draw a circle per point
-  std::vector<bool> hollow;  // per point (markers only): an open circle
-  std::string label;
+  std::string dash;            // stroke-dasharray, "" = solid
+  bool line = true;            // draw the polyline
+  bool markers = false;        // draw a circle per point
+  std::vector<bool> hollow;    // per point (markers only): an open circle
+  std::vector<double> errors;  // per point: a vertical bar y +- error (none where 0 or missing)
+  std::string label;           // empty: no legend entry
 };
 
 // The stroke attributes of a series' line: color, width 2, dashes if any.

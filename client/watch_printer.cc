@@ -64,6 +64,22 @@ std::string event_line(const v1::JobEvent& event) {
               " tank_treading_per_s=" + format("%.6g", s.tank_treading_frequency_per_s());
       break;
     }
+    case v1::JobEvent::kSuspensionSample: {
+      const auto& s = event.suspension_sample();
+      line += "sample index=" + std::to_string(s.index()) + " time_s=" + format("%.6e", s.time_s()) +
+              " strain=" + format("%.6g", s.strain()) + " cells=" + std::to_string(s.cell_count()) +
+              " mean_taylor_deformation=" + format("%.6g", s.mean_taylor_deformation()) +
+              " mean_inclination_rad=" + format("%.6g", s.mean_inclination_rad()) +
+              " relative_viscosity=" + format("%.6g", s.relative_viscosity()) +
+              " contact_pairs=" + std::to_string(s.contact_pairs());
+      if (s.average_taylor_deformation() != 0.0 || s.average_relative_viscosity() != 0.0) {
+        line += " average_taylor_deformation=" + format("%.6g", s.average_taylor_deformation()) + "+-" +
+                format("%.2g", s.average_taylor_deformation_error()) +
+                " average_relative_viscosity=" + format("%.6g", s.average_relative_viscosity()) + "+-" +
+                format("%.2g", s.average_relative_viscosity_error());
+      }
+      break;
+    }
     case v1::JobEvent::kChildUpdate: {
       const auto& c = event.child_update();
       line += "child " + c.child_job_id() + " index=" + std::to_string(c.child_index()) + " state " +

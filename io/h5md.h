@@ -19,7 +19,8 @@
 //   /observables/<name>/{step, time, value}   value: [n] or [n][width],
 //                               float64 or (counts) int64
 //   /parameters/job_spec_json   the job spec (protobuf JSON mapping), a string
-//   /parameters/<name>, /summary/<name>   scalars (attribute unit), integers and strings
+//   /parameters/<name>, /summary/<name>   scalars (attribute unit), integers,
+//                               integer arrays and strings
 //   /fields/<name>/{step, time, value}   one H5MD-style time series of a
 //                               vector field on a uniform grid, value
 //                               [frames][nz][ny][nx][3] float32 (H5MD has no
@@ -131,6 +132,9 @@ class H5mdWriter {
   Status write_scalar(std::string_view path, double value, std::string_view unit = "");
   Status write_integer(std::string_view path, std::int64_t value);
   Status write_string(std::string_view path, std::string_view value);
+  // A one-dimensional int64 dataset at `path` (e.g. the kind of each cell of
+  // a suspension, /parameters/setup/cell_kind).
+  Status write_integers(std::string_view path, std::span<const std::int64_t> values);
   // Stores the job spec JSON as /parameters/job_spec_json (written once).
   Status write_parameters_json(std::string_view json);
   // Makes everything written so far durable in the file.

@@ -337,6 +337,24 @@ Status H5mdWriter::write_integer(std::string_view path, std::int64_t value) {
   return {};
 }
 
+Status H5mdWriter::write_integers(std::string_view path, std::span<const std::int64_t> values) {
+  if (!impl_ || !impl_->file.valid()) return {StatusCode::kFailedPrecondition, "writer closed"};
+  const hid_t file = impl_->file.get();
+  const std::string name(path);
+  if (path_exists(file, name)) return {StatusCode::kFailedPrecondition, name + " already written"};
+  const hsize_t dims[1] = {values.size()};
+  Handle space(H5Screate_simple(1, dims, nullptr));
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE));
+  H5Pset_create_intermediate_group(lcpl.get(), 1);
+  Handle dataset(
+      H5Dcreate2(file, name.c_str(), H5T_STD_I64LE, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT));
+  // An empty array is a valid dataset of size 0 (nothing to write into it).
+  if (!dataset.valid() || (!values.empty() && H5Dwrite(dataset.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL,
+                                                       H5P_DEFAULT, values.data()) < 0))
+    return h5_error("writing " + name, path_);
+  return {};
+}
+
 Status H5mdWriter::append_vector_field(std::string_view name, std::int64_t step, double time,
                                        const UniformGrid& grid, std::span<const double> x,
                                        std::span<const double> y, std::span<const double> z,

@@ -1,12 +1,11 @@
 #include "jobs/registry.h"
 
-#include <google/protobuf/descriptor.h>
-
 #include <string>
 
 #include "jobs/fit/fit_job.h"
 #include "jobs/quasi_static/quasi_static_job.h"
 #include "jobs/shear_flow/shear_flow_job.h"
+#include "jobs/suspension/suspension_job.h"
 
 namespace cellflow::jobs {
 namespace {
@@ -18,6 +17,7 @@ constexpr SceneEntry kScenes[] = {
     {v1::JobSpec::kIndentation, "indentation", &prepare_indentation},
     {v1::JobSpec::kShearFlow, "shear_flow", &prepare_shear_flow},
     {v1::JobSpec::kFit, "fit", &prepare_fit},
+    {v1::JobSpec::kSuspension, "suspension", &prepare_suspension},
 };
 
 }  // namespace
@@ -47,14 +47,11 @@ StatusOr<std::unique_ptr<PreparedJob>> SceneRegistry::prepare(const v1::JobSpec&
   }
   // An uploaded mesh's bytes are filled in by the server or the worker that
   // fetched them; without them the spec cannot run (and must not fall back to a sphere).
-  const google::protobuf::Message& scene = spec.GetReflection()->GetMessage(
-      spec, spec.GetDescriptor()->FindFieldByNumber(static_cast<int>(entry->scene_case)));
-  if (const auto* field = scene.GetDescriptor()->FindFieldByName("cell");
-      field != nullptr && field->message_type() == v1::CellSpec::descriptor()) {
-    const auto& cell = static_cast<const v1::CellSpec&>(scene.GetReflection()->GetMessage(scene, field));
-    if (!cell.mesh_sha256().empty() && cell.mesh_bytes().empty()) {
-      return invalid_argument(std::string(entry->name) +
-                              ".cell.mesh_sha256: an uploaded mesh runs through the service, which "
+  v1::JobSpec copy = spec;  // scene_cells hands out mutable cells; nothing is changed
+  for (const SceneCell& scene_cell : scene_cells(copy)) {
+    if (!scene_cell.cell->mesh_sha256().empty() && scene_cell.cell->mesh_bytes().empty()) {
+      return invalid_argument(scene_cell.field +
+                              ".mesh_sha256: an uploaded mesh runs through the service, which "
                               "fetches its bytes (a local run reads cell.mesh_file)");
     }
   }

@@ -13,7 +13,7 @@
 
 #include "cellflow/v1/spec.pb.h"
 #include "jobs/scene.h"
-#include "jobs/spec_json.h"  // mutable_scene_cell
+#include "jobs/spec_json.h"  // scene_cells
 #include "physics/core/status.h"
 
 namespace cellflow::jobs {

@@ -29,10 +29,15 @@ struct CheckpointWritten {
   std::string error;     // non-empty: the write failed (the run goes on, the previous checkpoint stays)
 };
 
+// A suspension sample streams at most this many of its cells (the result
+// file holds every cell); the server refuses a report with more.
+inline constexpr int kMaxStreamedSuspensionCells = 256;
+
 // What a running job reports. All optional.
 struct JobEvents {
   std::function<void(const v1::ForceSample&)> force_sample;
   std::function<void(const v1::DeformationSample&)> deformation_sample;
+  std::function<void(const v1::SuspensionSample&)> suspension_sample;
   std::function<void(double fraction_done, const std::string& stage)> progress;
   std::function<bool()> should_stop;  // true: stop at the next check, outcome kCancelled
   // A complete checkpoint is at written.path (called on the physics thread;

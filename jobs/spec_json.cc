@@ -29,20 +29,38 @@ std::string_view scene_name(const v1::JobSpec& spec) {
   return field ? std::string_view(field->name()) : std::string_view();
 }
 
-v1::CellSpec* mutable_scene_cell(v1::JobSpec& spec, std::string* scene) {
+std::vector<SceneCell> scene_cells(v1::JobSpec& spec, std::string* scene) {
+  using google::protobuf::FieldDescriptor;
+  std::vector<SceneCell> cells;
   const google::protobuf::OneofDescriptor* oneof = spec.GetDescriptor()->FindOneofByName("scene");
   const google::protobuf::Reflection* reflection = spec.GetReflection();
-  const google::protobuf::FieldDescriptor* field =
-      oneof ? reflection->GetOneofFieldDescriptor(spec, oneof) : nullptr;
-  if (field == nullptr || field->type() != google::protobuf::FieldDescriptor::TYPE_MESSAGE) return nullptr;
-  google::protobuf::Message* message = reflection->MutableMessage(&spec, field);
-  const google::protobuf::FieldDescriptor* cell = message->GetDescriptor()->FindFieldByName("cell");
-  if (cell == nullptr || cell->message_type() != v1::CellSpec::descriptor() ||
-      !message->GetReflection()->HasField(*message, cell)) {
-    return nullptr;
-  }
+  const FieldDescriptor* field = oneof ? reflection->GetOneofFieldDescriptor(spec, oneof) : nullptr;
+  if (field == nullptr || field->type() != FieldDescriptor::TYPE_MESSAGE) return cells;
   if (scene != nullptr) *scene = field->name();
-  return static_cast<v1::CellSpec*>(message->GetReflection()->MutableMessage(message, cell));
+  google::protobuf::Message* message = reflection->MutableMessage(&spec, field);
+  // The set "cell" field of `m` (a CellSpec), if any.
+  auto cell_of = [](google::protobuf::Message* m) -> v1::CellSpec* {
+    const FieldDescriptor* cell = m->GetDescriptor()->FindFieldByName("cell");
+    if (cell == nullptr || cell->is_repeated() || cell->message_type() != v1::CellSpec::descriptor() ||
+        !m->GetReflection()->HasField(*m, cell))
+      return nullptr;
+    return static_cast<v1::CellSpec*>(m->GetReflection()->MutableMessage(m, cell));
+  };
+  if (v1::CellSpec* cell = cell_of(message)) cells.push_back({field->name() + ".cell", cell});
+  const google::protobuf::Descriptor* type = message->GetDescriptor();
+  for (int i = 0; i < type->field_count(); ++i) {
+    const FieldDescriptor* repeated = type->field(i);
+    if (!repeated->is_repeated() || repeated->type() != FieldDescriptor::TYPE_MESSAGE) continue;
+    const int n = message->GetReflection()->FieldSize(*message, repeated);
+    for (int k = 0; k < n; ++k) {
+      google::protobuf::Message* element =
+          message->GetReflection()->MutableRepeatedMessage(message, repeated, k);
+      if (v1::CellSpec* cell = cell_of(element)) {
+        cells.push_back({field->name() + "." + repeated->name() + "[" + std::to_string(k) + "].cell", cell});
+      }
+    }
+  }
+  return cells;
 }
 
 }  // namespace cellflow::jobs

@@ -242,9 +242,10 @@ StatusOr<std::unique_ptr<jobs::PreparedJob>> JobService::prepare_submitted(const
                             std::to_string(options_.max_name_bytes));
   }
   v1::JobSpec resolved = spec;
-  std::string scene;
-  if (v1::CellSpec* cell = jobs::mutable_scene_cell(resolved, &scene)) {
-    const std::string field = scene + ".cell.";
+  // Every cell of the scene (a suspension has one per kind).
+  for (const jobs::SceneCell& scene_cell : jobs::scene_cells(resolved)) {
+    v1::CellSpec* cell = scene_cell.cell;
+    const std::string field = scene_cell.field + ".";
     // A request names no file of the server's or a worker's machine: no
     // stat, no open, nothing about the path in the answer.
     if (!cell->mesh_file().empty()) {
@@ -358,11 +359,11 @@ Status JobService::fetch_mesh(const v1::FetchMeshRequest& request,
   auto job = store_.get(*id);
   if (!job.ok()) return job.status();
   v1::JobSpec spec = job->spec();
-  std::string scene;
-  const v1::CellSpec* cell = jobs::mutable_scene_cell(spec, &scene);
-  if (cell == nullptr || cell->mesh_sha256().empty() || cell->mesh_sha256() != request.sha256()) {
-    return invalid_argument("sha256: not the mesh of the leased job's spec");
-  }
+  const std::vector<jobs::SceneCell> cells = jobs::scene_cells(spec);
+  const bool named = std::any_of(cells.begin(), cells.end(), [&](const jobs::SceneCell& c) {
+    return !c.cell->mesh_sha256().empty() && c.cell->mesh_sha256() == request.sha256();
+  });
+  if (!named) return invalid_argument("sha256: not the mesh of the leased job's spec");
   auto bytes = meshes_.get(request.sha256());
   if (!bytes.ok()) return bytes.status();
   std::size_t offset = 0;
@@ -687,6 +688,25 @@ StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& requ
 
 namespace {
 
+// Why a suspension sample cannot be stored ("" when it can): a worker's report
+// is bounded like a request, so a hostile one cannot grow the event log by
+// repeating cells (the result file, not the event, holds every cell).
+std::string suspension_sample_refusal(const v1::SuspensionSample& s) {
+  if (s.cell_count() < 0) return "suspension_sample.cell_count: must be >= 0";
+  if (s.cells_size() > jobs::kMaxStreamedSuspensionCells) {
+    return "suspension_sample.cells: " + std::to_string(s.cells_size()) + " cells, at most " +
+           std::to_string(jobs::kMaxStreamedSuspensionCells) + " are streamed";
+  }
+  if (s.cells_size() > s.cell_count()) return "suspension_sample.cells: more cells than cell_count";
+  for (int i = 0; i < s.cells_size(); ++i) {
+    const v1::SuspendedCellState& cell = s.cells(i);
+    const std::string field = "suspension_sample.cells[" + std::to_string(i) + "]";
+    if (cell.cell() < 0 || cell.cell() >= s.cell_count()) return field + ".cell: outside [0, cell_count)";
+    if (cell.centroid_m_size() != 3) return field + ".centroid_m: must hold 3 values";
+  }
+  return "";
+}
+
 // A report for a job that no longer exists (cancelled, then deleted while its
 // worker still ran) is not an error of the stream: the ack tells the worker
 // that its attempt is over, so it stops instead of reconnecting until its
@@ -737,6 +757,11 @@ StatusOr<v1::ReportAck> JobService::report(const v1::WorkerReport& report) {
     case v1::WorkerReport::kDeformationSample:
       *event.mutable_deformation_sample() = report.deformation_sample();
       sample_index = report.deformation_sample().index();
+      break;
+    case v1::WorkerReport::kSuspensionSample:
+      refused = suspension_sample_refusal(report.suspension_sample());
+      *event.mutable_suspension_sample() = report.suspension_sample();
+      sample_index = report.suspension_sample().index();
       break;
     case v1::WorkerReport::KIND_NOT_SET:
       return invalid_argument("kind: a report needs a heartbeat, progress or sample");

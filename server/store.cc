@@ -243,6 +243,8 @@ const char* kind_name(const v1::JobEvent& event) {
       return "force_sample";
     case v1::JobEvent::kDeformationSample:
       return "deformation_sample";
+    case v1::JobEvent::kSuspensionSample:
+      return "suspension_sample";
     case v1::JobEvent::kChildUpdate:
       return "child";
     case v1::JobEvent::KIND_NOT_SET:

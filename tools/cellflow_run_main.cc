@@ -12,7 +12,8 @@ int main(int argc, char** argv) {
   cellflow::ensure_passive_openmp_wait(argv);  // idle threads sleep: the machine is shared
   CLI::App app{
       "Run a cellflow job spec (protobuf JSON mapping) locally; the force curve (compression,\n"
-      "indentation) or the deformation time series D(t) (shear flow) goes to CSV.\n"
+      "indentation), the deformation time series D(t) (shear flow) or the mean D and relative\n"
+      "viscosity over time (suspension) goes to CSV.\n"
       "Exit codes: 0 done, 1 usage, 2 invalid spec, 3 numerical failure (rows so far written)."};
   std::string spec_path, output_path, result_path;
   bool quiet = false;

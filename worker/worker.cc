@@ -195,10 +195,14 @@ bool Worker::hand_back(const v1::Lease& lease) {
 }
 
 Status Worker::fetch_mesh(v1::JobSpec& spec, const v1::Lease& lease) {
-  std::string scene;
-  v1::CellSpec* cell = jobs::mutable_scene_cell(spec, &scene);
-  if (cell == nullptr) return {};
-  const std::string field = scene + ".cell.";
+  // Every cell of the scene (a suspension has one per kind).
+  for (const jobs::SceneCell& scene_cell : jobs::scene_cells(spec)) {
+    if (Status s = fetch_cell_mesh(scene_cell.cell, scene_cell.field + ".", lease); !s.ok()) return s;
+  }
+  return {};
+}
+
+Status Worker::fetch_cell_mesh(v1::CellSpec* cell, const std::string& field, const v1::Lease& lease) {
   if (!cell->mesh_file().empty()) {
     return invalid_argument(field +
                             "mesh_file: a worker reads no file a job names; upload the mesh and set " +
@@ -256,6 +260,11 @@ void Worker::run_attempt(const v1::LeaseJobResponse& leased) {
   events.deformation_sample = [&](const v1::DeformationSample& sample) {
     v1::WorkerReport report;
     *report.mutable_deformation_sample() = sample;
+    reporter.send(std::move(report));
+  };
+  events.suspension_sample = [&](const v1::SuspensionSample& sample) {
+    v1::WorkerReport report;
+    *report.mutable_suspension_sample() = sample;
     reporter.send(std::move(report));
   };
   events.progress = [&](double fraction, const std::string& stage) {

@@ -67,6 +67,8 @@ class Worker {
   // Fills in the bytes of the uploaded mesh the spec names (FetchMesh);
   // refuses a spec that names a file of this machine.
   Status fetch_mesh(v1::JobSpec& spec, const v1::Lease& lease);
+  // One cell's uploaded mesh (field: its path in the spec, "suspension.cells[1].cell.").
+  Status fetch_cell_mesh(v1::CellSpec* cell, const std::string& field, const v1::Lease& lease);
   // Removes the scratch directories of workers that are gone (default location only).
   void remove_stale_scratch();
   bool sleep_unless_stopped(std::chrono::milliseconds duration);

@@ -55,15 +55,7 @@ class FlowRecorder : public ResultRecorder {
     };
     cb.on_sample = [this](const scenes::ShearFlowSample& sample) { on_sample(sample); };
     cb.on_fluid_velocity = [this](const scenes::FluidVelocitySnapshot& snap) {
-      io::UniformGrid grid;
-      grid.nx = snap.nx;
-      grid.ny = snap.ny;
-      grid.nz = snap.nz;
-      grid.spacing_m = snap.spacing_m;
-      // Lattice node (i, j, k) sits at ((i + 1/2) dx, ...) in box coordinates, as the cell positions.
-      for (double& o : grid.origin_m) o = 0.5 * snap.spacing_m;
-      keep(writer_->append_vector_field("fluid_velocity", step_of(snap.time_s), snap.time_s, grid,
-                                        snap.ux_m_per_s, snap.uy_m_per_s, snap.uz_m_per_s, "m s-1"));
+      keep(append_fluid_velocity(*writer_, snap, step_of(snap.time_s)));
       keep(writer_->flush());
     };
     cb.on_progress = [this](double fraction) {
@@ -79,27 +71,7 @@ class FlowRecorder : public ResultRecorder {
 
   // What the run derived before the first step, so a partial result has it too.
   void write_setup() {
-    auto put = [&](const char* name, double value, const char* unit) {
-      keep(writer_->write_scalar(std::string("/parameters/setup/") + name, value, unit));
-    };
-    // Units in the H5MD units syntax; dimensionless values carry none.
-    put("shear_rate_per_s", setup_.shear_rate_per_s, "s-1");
-    put("capillary_number", setup_.capillary_number, "");
-    put("shear_modulus_pa", setup_.shear_modulus_pa, "Pa");
-    put("reynolds_number_physical", setup_.reynolds_number_physical, "");
-    put("reynolds_number_simulated", setup_.reynolds_number_simulated, "");
-    put("simulated_density_kg_m3", setup_.simulated_density_kg_m3, "kg m-3");
-    put("lattice_spacing_m", setup_.lattice_spacing_m, "m");
-    put("time_step_s", setup_.time_step_s, "s");
-    keep(writer_->write_integer("/parameters/setup/nx", setup_.nx));
-    keep(writer_->write_integer("/parameters/setup/ny", setup_.ny));
-    keep(writer_->write_integer("/parameters/setup/nz", setup_.nz));
-    put("cells_per_radius", setup_.cells_per_radius, "");
-    put("predicted_thickness_over_kernel", setup_.predicted_thickness_over_kernel, "");
-    put("wall_speed_m_per_s", setup_.wall_speed_m_per_s, "m s-1");
-    put("mach_number", setup_.mach_number, "");
-    put("viscosity_ratio", setup_.viscosity_ratio, "");
-    put("inner_relaxation_time", setup_.inner_relaxation_time, "");
+    keep(write_flow_setup(*writer_, setup_));
     keep(writer_->flush());
   }
 
@@ -311,6 +283,48 @@ class ShearFlowJob final : public PreparedJob {
 };
 
 }  // namespace
+
+Status append_fluid_velocity(io::H5mdWriter& writer, const scenes::FluidVelocitySnapshot& snap,
+                             std::int64_t step) {
+  io::UniformGrid grid;
+  grid.nx = snap.nx;
+  grid.ny = snap.ny;
+  grid.nz = snap.nz;
+  grid.spacing_m = snap.spacing_m;
+  // Lattice node (i, j, k) sits at ((i + 1/2) dx, ...) in box coordinates, as the cell positions.
+  for (double& o : grid.origin_m) o = 0.5 * snap.spacing_m;
+  return writer.append_vector_field("fluid_velocity", step, snap.time_s, grid, snap.ux_m_per_s,
+                                    snap.uy_m_per_s, snap.uz_m_per_s, "m s-1");
+}
+
+Status write_flow_setup(io::H5mdWriter& writer, const scenes::ShearFlowSetup& setup) {
+  Status first;
+  auto keep = [&](Status s) {
+    if (first.ok() && !s.ok()) first = std::move(s);
+  };
+  auto put = [&](const char* name, double value, const char* unit) {
+    keep(writer.write_scalar(std::string("/parameters/setup/") + name, value, unit));
+  };
+  // Units in the H5MD units syntax; dimensionless values carry none.
+  put("shear_rate_per_s", setup.shear_rate_per_s, "s-1");
+  put("capillary_number", setup.capillary_number, "");
+  put("shear_modulus_pa", setup.shear_modulus_pa, "Pa");
+  put("reynolds_number_physical", setup.reynolds_number_physical, "");
+  put("reynolds_number_simulated", setup.reynolds_number_simulated, "");
+  put("simulated_density_kg_m3", setup.simulated_density_kg_m3, "kg m-3");
+  put("lattice_spacing_m", setup.lattice_spacing_m, "m");
+  put("time_step_s", setup.time_step_s, "s");
+  keep(writer.write_integer("/parameters/setup/nx", setup.nx));
+  keep(writer.write_integer("/parameters/setup/ny", setup.ny));
+  keep(writer.write_integer("/parameters/setup/nz", setup.nz));
+  put("cells_per_radius", setup.cells_per_radius, "");
+  put("predicted_thickness_over_kernel", setup.predicted_thickness_over_kernel, "");
+  put("wall_speed_m_per_s", setup.wall_speed_m_per_s, "m s-1");
+  put("mach_number", setup.mach_number, "");
+  put("viscosity_ratio", setup.viscosity_ratio, "");
+  put("inner_relaxation_time", setup.inner_relaxation_time, "");
+  return first;
+}
 
 StatusOr<std::unique_ptr<PreparedJob>> prepare_shear_flow(const v1::JobSpec& spec) {
   StatusOr<scenes::ShearFlowParams> params = convert(spec.shear_flow());

@@ -11,6 +11,7 @@
 
 #include "cellflow/v1/service.pb.h"
 #include "cellflow/v1/spec.pb.h"
+#include "io/h5md.h"
 #include "jobs/scene.h"
 #include "physics/core/status.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
@@ -19,6 +20,15 @@ namespace cellflow::jobs {
 
 // Registry entry (jobs/registry.cc).
 StatusOr<std::unique_ptr<PreparedJob>> prepare_shear_flow(const v1::JobSpec& spec);
+
+// /parameters/setup/*: the resolved flow setup (lattice, time step, Ca, Re,
+// wall speed), which the suspension's result shares.
+Status write_flow_setup(io::H5mdWriter& writer, const scenes::ShearFlowSetup& setup);
+
+// One frame of /fields/fluid_velocity at lattice step `step` (node (i, j, k)
+// at ((i + 1/2) dx, ...), as the cell positions).
+Status append_fluid_velocity(io::H5mdWriter& writer, const scenes::FluidVelocitySnapshot& snapshot,
+                             std::int64_t step);
 
 // A shear-flow sample as the sample message of the API (inclination in radians).
 v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& sample);

@@ -35,8 +35,15 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
   // Unset: 1 (no contrast, nothing marked); the range is checked by validate().
   if (spec.has_viscosity_ratio()) params.viscosity_ratio = spec.viscosity_ratio();
 
-  const v1::ShearFlowNumerics& in = spec.numerics();
-  scenes::ShearFlowNumerics& n = params.numerics;  // holds the defaults
+  if (Status numerics = convert_numerics(spec.numerics(), params.numerics, prefix + "numerics.");
+      !numerics.ok())
+    return numerics;
+  return params;
+}
+
+Status convert_numerics(const v1::ShearFlowNumerics& in, scenes::ShearFlowNumerics& n,
+                        std::string_view field_prefix) {
+  const std::string prefix(field_prefix);
   if (in.has_cells_per_radius()) n.cells_per_radius = in.cells_per_radius();
   if (in.has_box_x_radii()) n.box_x_radii = in.box_x_radii();
   if (in.has_box_y_radii()) n.box_y_radii = in.box_y_radii();
@@ -47,7 +54,7 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
   if (in.has_steady_tolerance()) n.steady_tolerance = in.steady_tolerance();
   if (in.has_steady_window_strain()) n.steady_window_strain = in.steady_window_strain();
   if (in.has_ibm_kernel()) {
-    StatusOr<ibm::Kernel> kernel = ibm::parse_kernel(in.ibm_kernel(), prefix + "numerics.ibm_kernel");
+    StatusOr<ibm::Kernel> kernel = ibm::parse_kernel(in.ibm_kernel(), prefix + "ibm_kernel");
     if (!kernel.ok()) return kernel.status();
     n.ibm_kernel = *kernel;
   }
@@ -62,9 +69,9 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
   if (in.has_hydrodynamic_radius_offset()) {
     // Negative values are the physics layer's "kernel default"; a spec says that by leaving it unset.
     if (!(in.hydrodynamic_radius_offset() >= 0.0)) {
-      return invalid_argument(prefix + "numerics.hydrodynamic_radius_offset = " +
-                              number_text(in.hydrodynamic_radius_offset(), 6) +
-                              " must lie in [0, 2] lattice spacings (unset: the kernel's value)");
+      return invalid_argument(
+          prefix + "hydrodynamic_radius_offset = " + number_text(in.hydrodynamic_radius_offset(), 6) +
+          " must lie in [0, 2] lattice spacings (unset: the kernel's value)");
     }
     n.hydrodynamic_radius_offset = in.hydrodynamic_radius_offset();
   }
@@ -74,8 +81,7 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
   } else if (in.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {
     n.volumetric = elastic::VolumetricTerm::kNodalAverage;
   }
-
-  return params;
+  return Status();
 }
 
 StatusOr<scenes::ShearFlowParams> to_params(const v1::ShearFlowSpec& spec, std::string_view field_prefix) {

@@ -12,6 +12,12 @@
 
 namespace cellflow::jobs {
 
+// The set fields of `in` over `numerics` (which holds the scene's defaults:
+// the suspension scene shares these numerics with its own defaults); errors
+// name field_prefix + field (e.g. "shear_flow.numerics.ibm_kernel").
+Status convert_numerics(const v1::ShearFlowNumerics& in, scenes::ShearFlowNumerics& numerics,
+                        std::string_view field_prefix);
+
 // Converts: the fields of `spec` over the scene's defaults, the drive and the
 // kernel name checked; ranges are left to scenes::plan_shear_flow.
 StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec,

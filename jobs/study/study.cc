@@ -238,7 +238,7 @@ StatusOr<int> count_study_points(const v1::StudySpec& study, int max_points) {
 
 StatusOr<std::vector<StudyPoint>> expand_study(const v1::StudySpec& study, int max_points) {
   if (!study.has_base() || scene_name(study.base()).empty()) {
-    return invalid_argument("study.base: a job spec with a scene (compression, indentation, shearFlow, fit)");
+    return invalid_argument("study.base: a job spec with a scene (compression, indentation, shearFlow, fit, suspension)");
   }
   if (study.base().has_study()) {
     return invalid_argument("study.base: a study cannot hold a study (nested studies are refused)");

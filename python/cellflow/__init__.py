@@ -21,6 +21,8 @@ from cellflow.events import (
     ForceSample,
     Progress,
     StateChange,
+    SuspendedCellState,
+    SuspensionSample,
     event_from_proto,
 )
 from cellflow.results import Observable, Result, read_result
@@ -37,6 +39,8 @@ __all__ = [
     "Progress",
     "Result",
     "StateChange",
+    "SuspendedCellState",
+    "SuspensionSample",
     "TERMINAL_STATES",
     "event_from_proto",
     "parse_spec",

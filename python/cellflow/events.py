@@ -88,6 +88,40 @@ class DeformationSample(Event):
 
 
 @dataclasses.dataclass(frozen=True)
+class SuspendedCellState:
+    """One cell of a suspension sample (not an event)."""
+
+    cell: int  # index in the suspension's order of cells
+    taylor_deformation: float
+    inclination_rad: float
+    net_strain: float
+    centroid_m: Tuple[float, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class SuspensionSample(Event):
+    """A sample of a suspension (many cells in shear flow): the mean over the
+    cells, the relative viscosity, the averages with their standard errors,
+    and the first 256 cells (the result file holds every cell)."""
+
+    index: int
+    time_s: float
+    strain: float
+    cell_count: int
+    mean_taylor_deformation: float
+    mean_inclination_rad: float
+    relative_viscosity: float
+    contact_pairs: int
+    cells: Tuple[SuspendedCellState, ...]
+    average_taylor_deformation: float
+    average_taylor_deformation_error: float
+    average_relative_viscosity: float
+    average_relative_viscosity_error: float
+
+    kind = "suspension_sample"
+
+
+@dataclasses.dataclass(frozen=True)
 class ChildUpdate(Event):
     """A study's event: one of its children changed state."""
 
@@ -99,13 +133,25 @@ class ChildUpdate(Event):
     kind = "child_update"
 
 
-EVENT_CLASSES = {cls.kind: cls for cls in (StateChange, Progress, ForceSample, DeformationSample, ChildUpdate)}
+EVENT_CLASSES = {
+    cls.kind: cls for cls in (StateChange, Progress, ForceSample, DeformationSample, ChildUpdate, SuspensionSample)
+}
+# Repeated message fields of an event become tuples of these dataclasses.
+MESSAGE_CLASSES = {"cellflow.v1.SuspendedCellState": SuspendedCellState}
 _BASE_FIELDS = tuple(f.name for f in dataclasses.fields(Event))
+
+
+def _message_value(message):
+    cls = MESSAGE_CLASSES[message.DESCRIPTOR.full_name]
+    fields = message.DESCRIPTOR.fields_by_name
+    return cls(**{f.name: _field_value(message, fields[f.name]) for f in dataclasses.fields(cls)})
 
 
 def _field_value(message, field):
     value = getattr(message, field.name)
     if field.label == FieldDescriptor.LABEL_REPEATED:
+        if field.type == FieldDescriptor.TYPE_MESSAGE:
+            return tuple(_message_value(m) for m in value)
         return tuple(value)
     if field.type == FieldDescriptor.TYPE_ENUM:
         return field.enum_type.values_by_number[value].name if value in field.enum_type.values_by_number else str(value)

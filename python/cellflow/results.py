@@ -32,6 +32,10 @@ LAYOUT = {
     "fields": "/fields",                       # <name>/{step, time, ...}: vector fields on the lattice
     "field_value": "value",                    # (frames, nz, ny, nx, 3): one time series (result schema 2)
     "field_frame": "frame_{:06d}",             # (nz, ny, nx, 3): one dataset per frame (result schema 1)
+    # A suspension: every cell's vertices in the one group above, cells in order.
+    "cell_kind": "/parameters/setup/cell_kind",                    # (cells,) index into suspension.cells
+    "cell_vertex_offset": "/parameters/setup/cell_vertex_offset",  # (cells + 1,) rows of the positions
+    "cell_tet_offset": "/parameters/setup/cell_tet_offset",        # (cells + 1,) rows of the tetrahedra
 }
 # Attributes of a field group: node counts (nx, ny, nz), spacing and origin.
 FIELD_ATTRIBUTES = {"dimensions": "dimensions", "spacing_m": "spacing_m", "origin_m": "origin_m"}
@@ -96,11 +100,13 @@ def _text(value):
 class Result:
     """A job's result file.
 
-    scene: "compression", "indentation", "shear_flow" or "fit"; spec: the job
+    scene: "compression", "indentation", "shear_flow", "suspension" or "fit"; spec: the job
     spec as a dict (protobuf JSON mapping); observables: {name: Observable};
     setup and summary: {name: float or str}; tetrahedra (tets, 4),
     cell_region (tets,); frame_steps and frame_times (frames,); positions(k)
     (vertices, 3) in m; field_names and field(name, k) for fluid frames.
+    A suspension holds every cell's vertices in positions(k): cell_count,
+    cell_kind, cell_positions(i, k) and cell_tetrahedra(i) split them.
     """
 
     def __init__(self, path, *, max_dataset_bytes: int = DEFAULT_MAX_DATASET_BYTES, schemas=None):
@@ -116,6 +122,7 @@ class Result:
             self.setup = self._read_scalars(f, LAYOUT["setup"])
             self.summary = self._read_scalars(f, LAYOUT["summary"])
             self._read_mesh(f)
+            self._read_cells(f)
             self.field_names = sorted(f[LAYOUT["fields"]].keys()) if LAYOUT["fields"] in f else []
 
     # -- reading -------------------------------------------------------------
@@ -195,7 +202,45 @@ class Result:
                 raise ResultFileError(f"{self.path}: cell_region has {region.shape}, not one value per tetrahedron")
             self.cell_region = region
 
+    def _read_cells(self, f):
+        """A suspension's cells: which rows of the positions and tetrahedra are whose.
+        Without them (a single cell) the whole mesh is cell 0 of kind 0."""
+        vertices, tets = self._positions.shape[1], len(self.tetrahedra)
+        self.cell_kind = np.zeros((1,), dtype=np.int64)
+        self.cell_vertex_offset = np.array([0, vertices], dtype=np.int64)
+        self.cell_tet_offset = np.array([0, tets], dtype=np.int64)
+        if LAYOUT["cell_kind"] not in f:
+            return
+        kind = np.asarray(self._read(f, LAYOUT["cell_kind"]), dtype=np.int64)
+        vertex_offset = np.asarray(self._read(f, LAYOUT["cell_vertex_offset"]), dtype=np.int64)
+        tet_offset = np.asarray(self._read(f, LAYOUT["cell_tet_offset"]), dtype=np.int64)
+        cells = len(kind)
+        for name, offset, total in (("cell_vertex_offset", vertex_offset, vertices), ("cell_tet_offset", tet_offset, tets)):
+            if offset.shape != (cells + 1,) or offset[0] != 0 or np.any(np.diff(offset) < 0) or offset[-1] != total:
+                raise ResultFileError(f"{self.path}: {name} is not {cells + 1} rising offsets from 0 to {total}")
+        if cells and kind.min() < 0:
+            raise ResultFileError(f"{self.path}: cell_kind below 0")
+        self.cell_kind, self.cell_vertex_offset, self.cell_tet_offset = kind, vertex_offset, tet_offset
+
     # -- access --------------------------------------------------------------
+
+    @property
+    def cell_count(self) -> int:
+        """Cells in the result (1 for a single-cell scene)."""
+        return len(self.cell_kind)
+
+    def cell_positions(self, cell: int, frame: int = -1) -> np.ndarray:
+        """The vertex positions (vertices of the cell, 3) in m of one cell at frame k."""
+        if not 0 <= cell < self.cell_count:
+            raise IndexError(f"cell {cell} of {self.cell_count}")
+        return self.positions(frame)[self.cell_vertex_offset[cell]:self.cell_vertex_offset[cell + 1]]
+
+    def cell_tetrahedra(self, cell: int) -> np.ndarray:
+        """One cell's tetrahedra (tets, 4) with vertex indices into cell_positions(cell)."""
+        if not 0 <= cell < self.cell_count:
+            raise IndexError(f"cell {cell} of {self.cell_count}")
+        rows = self.tetrahedra[self.cell_tet_offset[cell]:self.cell_tet_offset[cell + 1]]
+        return rows - self.cell_vertex_offset[cell]
 
     @property
     def frame_count(self) -> int:

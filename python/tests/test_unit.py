@@ -54,6 +54,19 @@ class Events(unittest.TestCase):
         child.child_update.state = service_pb2.Job.SUCCEEDED
         self.assertEqual(cellflow.event_from_proto(child).state, "SUCCEEDED")
         self.assertIs(type(cellflow.event_from_proto(service_pb2.JobEvent(sequence=1))), cellflow.Event)
+        suspension = service_pb2.JobEvent(sequence=10)
+        s = suspension.suspension_sample
+        s.index, s.cell_count, s.mean_taylor_deformation = 4, 300, 0.125
+        for i in range(2):
+            cell = s.cells.add(cell=i, taylor_deformation=0.1 * i)
+            cell.centroid_m.extend([1e-6 * i, 2e-6, 3e-6])
+        converted = cellflow.event_from_proto(suspension)
+        self.assertIsInstance(converted, cellflow.SuspensionSample)
+        self.assertEqual((converted.index, converted.cell_count, converted.mean_taylor_deformation), (4, 300, 0.125))
+        self.assertEqual(len(converted.cells), 2)
+        self.assertIsInstance(converted.cells[1], cellflow.SuspendedCellState)
+        self.assertEqual(converted.cells[1].centroid_m, (1e-6, 2e-6, 3e-6))
+        self.assertEqual(converted.cells[1].taylor_deformation, 0.1)
 
 
 class Specs(unittest.TestCase):
@@ -206,6 +219,35 @@ class Reader(unittest.TestCase):
             self.assertTrue(any(p.startswith(results.LAYOUT["observables"] + "/") for p in paths))
             self.assertTrue(any(p.startswith(results.LAYOUT["summary"] + "/") for p in paths) or scene != "shear_flow")
         self.assertTrue(any(e["path"].startswith(results.LAYOUT["setup"] + "/") for e in schemas["shear_flow"]["entries"]))
+        suspension = {e["path"] for e in schemas["suspension"]["entries"]}
+        for key in ("job_spec", "tetrahedra", "cell_region", "cell_kind", "cell_vertex_offset", "cell_tet_offset"):
+            self.assertIn(results.LAYOUT[key], suspension, key)
+        self.assertIn(results.LAYOUT["positions"] + "/value", suspension)
+
+    def test_a_suspension_splits_into_its_cells(self):
+        # Two cells of kind 0 (one tetrahedron, 4 vertices) and one of kind 1 (2 tetrahedra, 5 vertices).
+        tets = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11], [8, 9, 10, 12]])
+        write_compression_file(self.path, vertices=13, tets=tets)
+        with h5py.File(self.path, "a") as f:
+            f[results.LAYOUT["cell_kind"]] = np.array([0, 0, 1], dtype=np.int64)
+            f[results.LAYOUT["cell_vertex_offset"]] = np.array([0, 4, 8, 13], dtype=np.int64)
+            f[results.LAYOUT["cell_tet_offset"]] = np.array([0, 1, 2, 4], dtype=np.int64)
+        r = cellflow.read_result(self.path)
+        self.assertEqual(r.cell_count, 3)
+        self.assertEqual(r.cell_kind.tolist(), [0, 0, 1])
+        np.testing.assert_array_equal(r.cell_positions(1, 0), r.positions(0)[4:8])
+        self.assertEqual(r.cell_tetrahedra(2).tolist(), [[0, 1, 2, 3], [0, 1, 2, 4]])
+        with self.assertRaises(IndexError):
+            r.cell_positions(3)
+        with h5py.File(self.path, "a") as f:
+            del f[results.LAYOUT["cell_vertex_offset"]]
+            f[results.LAYOUT["cell_vertex_offset"]] = np.array([0, 4, 14, 13], dtype=np.int64)
+        with self.assertRaisesRegex(results.ResultFileError, "offsets"):
+            cellflow.read_result(self.path)
+        write_compression_file(self.path)  # a single cell: one cell of kind 0
+        r = cellflow.read_result(self.path)
+        self.assertEqual(r.cell_count, 1)
+        self.assertEqual(r.cell_tetrahedra(0).tolist(), r.tetrahedra.tolist())
 
     def test_reads_arrays_units_from_the_schema_and_summary(self):
         write_compression_file(self.path)

@@ -180,5 +180,32 @@ TEST(RunJob, ExitCodes) {
   EXPECT_NE(failed.status.message().find("load step 0"), std::string::npos) << failed.status.message();
 }
 
+TEST(JobSpec, SceneCellsAreEveryCellOfTheSceneWithItsFieldPath) {
+  v1::JobSpec flow;
+  flow.mutable_shear_flow()->mutable_cell()->set_radius_m(4e-6);
+  std::string scene;
+  std::vector<SceneCell> cells = scene_cells(flow, &scene);
+  EXPECT_EQ(scene, "shear_flow");
+  ASSERT_EQ(cells.size(), 1u);
+  EXPECT_EQ(cells[0].field, "shear_flow.cell");
+  EXPECT_EQ(cells[0].cell, flow.mutable_shear_flow()->mutable_cell());
+
+  v1::JobSpec suspension;
+  for (int k = 0; k < 3; ++k) suspension.mutable_suspension()->add_cells();
+  suspension.mutable_suspension()->mutable_cells(0)->mutable_cell()->set_radius_m(4e-6);
+  suspension.mutable_suspension()->mutable_cells(2)->mutable_cell()->set_mesh_file("x.msh");
+  cells = scene_cells(suspension);  // the kind without a cell has none to check
+  ASSERT_EQ(cells.size(), 2u);
+  EXPECT_EQ(cells[0].field, "suspension.cells[0].cell");
+  EXPECT_EQ(cells[1].field, "suspension.cells[2].cell");
+  EXPECT_EQ(cells[1].cell->mesh_file(), "x.msh");
+
+  v1::JobSpec none;
+  EXPECT_TRUE(scene_cells(none).empty());
+  v1::JobSpec no_cell;
+  no_cell.mutable_compression()->set_max_deformation(0.1);
+  EXPECT_TRUE(scene_cells(no_cell).empty());
+}
+
 }  // namespace
 }  // namespace cellflow::jobs

@@ -206,6 +206,26 @@ TEST(ResultSchema, ShearFlowFileMatchesItsSchema) {
   fs::remove(path);
 }
 
+TEST(ResultSchema, SuspensionFileMatchesItsSchema) {
+  const json schema = load_schema("jobs/suspension/result_schema.json");
+  v1::JobSpec spec;
+  auto* s = spec.mutable_suspension();
+  auto* cells = s->add_cells();
+  cells->mutable_cell()->set_radius_m(4e-6);
+  cells->mutable_cell()->mutable_material()->set_youngs_modulus_pa(50.0);
+  cells->mutable_cell()->set_target_vertex_count(300);
+  cells->set_count(2);
+  s->set_capillary_number(0.2);
+  auto* n = s->mutable_numerics();
+  n->set_average_after_strain(0.2);
+  n->mutable_flow()->set_cells_per_radius(3);
+  n->mutable_flow()->set_max_strain(0.5);
+  n->mutable_flow()->set_fluid_snapshots(true);  // the optional /fields entries are checked too
+  const std::string path = run_to_file(spec, "suspension");
+  check_against_schema(path, schema);
+  fs::remove(path);
+}
+
 // A fit of one Hertz curve (the Hertz model needs no library simulation).
 TEST(ResultSchema, FitFileMatchesItsSchema) {
   const json schema = load_schema("jobs/fit/result_schema.json");

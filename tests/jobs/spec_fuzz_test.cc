@@ -1,5 +1,5 @@
 // Spec fuzzer (issue 13 item 5): seeded random JobSpecs over every field of
-// the three scenes (unset, typical, boundary and hostile values: 0, -0.0,
+// the four scenes (unset, typical, boundary and hostile values: 0, -0.0,
 // denormals, 1e+-300, NaN, +-Inf, INT_MIN/INT_MAX, random bytes, random and
 // mutated .msh files). For each spec SceneRegistry::prepare either refuses it
 // with a message naming a field of that scene, or accepts it with a finite,
@@ -36,6 +36,7 @@
 #include "jobs/common/result_file.h"
 #include "jobs/job_spec.h"
 #include "jobs/registry.h"
+#include "jobs/suspension/suspension_spec.h"
 #include "physics/mesh/sphere_mesh.h"
 
 #ifndef CELLFLOW_FUZZ_DEFAULT_SPECS
@@ -270,6 +271,8 @@ void fill_indentation(Gen& g, const MeshPool& pool, v1::IndentationSpec* s) {
   if (g.chance(0.7)) fill_quasi_static_numerics(g, r, s->mutable_numerics());
 }
 
+void fill_flow_numerics(Gen& g, v1::ShearFlowNumerics* n);
+
 void fill_shear_flow(Gen& g, const MeshPool& pool, v1::ShearFlowSpec* s) {
   if (g.chance(0.98)) fill_cell(g, pool, s->mutable_cell());
   if (g.set()) s->set_fluid_density_kg_m3(g.real({1e3, 1.0, 1e5, 1050.0}));
@@ -280,8 +283,11 @@ void fill_shear_flow(Gen& g, const MeshPool& pool, v1::ShearFlowSpec* s) {
   } else if (drive < 9) {
     s->set_shear_rate_per_s(g.real({4.0, 100.0, 1e3, 1e-6, 1e7}));
   }
-  if (!g.chance(0.8)) return;
-  v1::ShearFlowNumerics* n = s->mutable_numerics();
+  if (g.chance(0.8)) fill_flow_numerics(g, s->mutable_numerics());
+}
+
+// The flow numerics a shear-flow and a suspension spec share.
+void fill_flow_numerics(Gen& g, v1::ShearFlowNumerics* n) {
   if (g.set()) n->set_cells_per_radius(g.real({2.0, 3.0, 4.0, 6.0, 64.0}));
   if (g.set()) n->set_box_x_radii(g.real({10.0, 4.0, 5.0, 1000.0}));
   if (g.set()) n->set_box_y_radii(g.real({15.0, 5.0, 6.0, 1000.0}));
@@ -306,6 +312,54 @@ void fill_shear_flow(Gen& g, const MeshPool& pool, v1::ShearFlowSpec* s) {
   if (g.chance(0.3)) n->set_volumetric_term(static_cast<v1::VolumetricTerm>(g.integer({0, 1, 2, 7})));
 }
 
+// A suspension: 1 to 3 kinds (sometimes none, or more than the 64 allowed),
+// each counted, given a volume fraction or placed (inside, outside, on top of
+// one another), with its own viscosity ratio; the suspension's numerics.
+void fill_suspension(Gen& g, const MeshPool& pool, v1::SuspensionSpec* s) {
+  const int kinds = g.chance(0.03) ? 0 : g.chance(0.02) ? 65 : static_cast<int>(1 + g.below(2) + g.below(2));
+  for (int k = 0; k < kinds; ++k) {
+    v1::SuspendedCells* cells = s->add_cells();
+    if (g.chance(0.98)) fill_cell(g, pool, cells->mutable_cell());
+    const double r = cells->cell().radius_m();
+    // Mostly unset or 1: a refused lambda of one kind refuses the whole spec.
+    if (g.chance(0.25)) cells->set_viscosity_ratio(g.real({1.0, 1.0, 0.05, 5.0, 0.0, -1.0, 1e3}));
+    const std::uint64_t how = g.below(10);
+    if (how < 4) {
+      cells->set_count(g.integer({1, 2, 4, 8, 0, -1, 1000, INT_MAX}));
+    } else if (how < 7) {
+      cells->set_volume_fraction(g.real({0.11, 0.22, 0.05, 0.5, 0.6, 0.0, -0.1}));
+    } else if (how < 9) {
+      const int places = static_cast<int>(1 + g.below(3));
+      for (int i = 0; i < places; ++i) {
+        v1::CellPlacement* p = cells->add_placements();
+        // Inside a 5 x 8 x 4 R box, on a wall, outside it, or where the previous one is.
+        p->set_x_m(g.real({2.5 * r, (1.0 + 2.2 * i) * r, -r, 100.0 * r}));
+        p->set_y_m(g.real({4.0 * r, 1.5 * r, 0.5 * r, 9.0 * r}));
+        p->set_z_m(g.real({2.0 * r, 1.5 * r, -3.0 * r}));
+        if (g.chance(0.3)) p->set_rotation_z_rad(g.real({0.5, 3.0, 100.0}));
+      }
+    }  // else: none of the three
+  }
+  if (g.set()) s->set_fluid_density_kg_m3(g.real({1e3, 1.0, 1e5}));
+  if (g.set()) s->set_fluid_viscosity_pa_s(g.real({1e-3, 1e-6, 1e3}));
+  const std::uint64_t drive = g.below(10);
+  if (drive < 5) {
+    s->set_capillary_number(g.real({0.05, 0.1, 0.2, 0.4, 1e-3, 100.0}));
+  } else if (drive < 9) {
+    s->set_shear_rate_per_s(g.real({4.0, 100.0, 1e-6, 1e7}));
+  }
+  if (!g.chance(0.8)) return;
+  v1::SuspensionNumerics* n = s->mutable_numerics();
+  if (g.chance(0.7)) fill_flow_numerics(g, n->mutable_flow());
+  if (g.set()) n->set_seed(static_cast<std::uint64_t>(g.integer({1, 2, 0, INT_MAX})));
+  if (g.set()) n->set_contact_range_dx(g.real({1.0, 0.5, 4.0, 5.0, 0.0}));
+  if (g.set()) n->set_contact_strength(g.real({1.0, 10.0, 1e3, 1e4, 0.0}));
+  if (g.set()) n->set_average_after_strain(g.real({5.0, 0.0, 1.0, -1.0}));
+  if (g.set()) n->set_target_standard_error(g.real({0.0, 0.02, 0.5, 1.0, -0.1}));
+  if (g.set()) n->set_marking_every_steps(g.integer({1, 10, 1000, 0, 1001}));
+  if (g.set()) n->set_min_gap_dx(g.real({1.0, 0.0, 10.0, 11.0}));
+}
+
 v1::JobSpec make_spec(long long seed, long long index, const MeshPool& pool) {
   Gen g(seed, index);
   v1::JobSpec spec;
@@ -315,8 +369,10 @@ v1::JobSpec make_spec(long long seed, long long index, const MeshPool& pool) {
     fill_compression(g, pool, spec.mutable_compression());
   } else if (scene < 66) {
     fill_indentation(g, pool, spec.mutable_indentation());
-  } else if (scene < 98) {
+  } else if (scene < 88) {
     fill_shear_flow(g, pool, spec.mutable_shear_flow());
+  } else if (scene < 98) {
+    fill_suspension(g, pool, spec.mutable_suspension());
   }  // else: no scene
   return spec;
 }
@@ -326,8 +382,10 @@ std::string named_field(const std::string& message, const std::string& prefix) {
   const std::size_t at = message.find(prefix);
   if (at == std::string::npos) return {};
   std::size_t end = at;
-  while (end < message.size() && (std::isalnum(static_cast<unsigned char>(message[end])) ||
-                                  message[end] == '_' || message[end] == '.'))
+  // A suspension names its kinds with an index: "suspension.cells[1].viscosity_ratio".
+  while (end < message.size() &&
+         (std::isalnum(static_cast<unsigned char>(message[end])) || message[end] == '_' ||
+          message[end] == '.' || message[end] == '[' || message[end] == ']'))
     ++end;
   std::string field = message.substr(at, end - at);
   while (!field.empty() && field.back() == '.') field.pop_back();
@@ -342,6 +400,8 @@ std::string scene_prefix(const v1::JobSpec& spec) {
       return "indentation.";
     case v1::JobSpec::kShearFlow:
       return "shear_flow.";
+    case v1::JobSpec::kSuspension:
+      return "suspension.";
     default:
       return "scene";
   }
@@ -380,6 +440,20 @@ bool cheap(const v1::JobSpec& spec) {
       if (p->numerics.max_time_s > 0.0) steps = std::min(steps, p->numerics.max_time_s / plan->time_step_s);
       const double nodes = static_cast<double>(plan->nx) * plan->ny * plan->nz;
       return nodes * steps <= 3e7 && steps <= 20000;
+    }
+    case v1::JobSpec::kSuspension: {
+      const auto& s = spec.suspension();
+      for (const auto& kind : s.cells()) {
+        if (!small_cell(kind.cell())) return false;
+      }
+      StatusOr<scenes::PlannedSuspension> planned = plan(s);
+      if (!planned.ok()) return false;
+      const scenes::ShearFlowSetup& flow = planned->setup().flow;
+      const auto& n = planned->params().numerics.flow;
+      double steps = n.max_strain * flow.steps_per_strain;
+      if (n.max_time_s > 0.0) steps = std::min(steps, n.max_time_s / flow.time_step_s);
+      const double nodes = static_cast<double>(flow.nx) * flow.ny * flow.nz;
+      return planned->setup().cell_count <= 4 && nodes * steps <= 3e7 && steps <= 20000;
     }
     default:
       return false;

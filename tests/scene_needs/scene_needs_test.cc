@@ -68,6 +68,17 @@ TEST(SceneLinkClosure, ShearFlowBuildsNoContactSearchAndNoSolver) {
   EXPECT_FALSE(links(kShearFlowClosure, "cellflow_quasi_static")) << all;
 }
 
+TEST(SceneLinkClosure, OnlyTheSuspensionBuildsTheCellContactSearch) {
+  // The suspension scene links the cell-cell repulsion; the single-cell
+  // scene it builds on does not (checked above for every contact target).
+  const std::string all = listed(kSuspensionClosure);
+  EXPECT_TRUE(links(kSuspensionClosure, "cellflow_cell_contact")) << all;
+  EXPECT_TRUE(links(kSuspensionClosure, "cellflow_shear_flow")) << all;
+  EXPECT_FALSE(links(kShearFlowClosure, "cellflow_cell_contact")) << listed(kShearFlowClosure);
+  EXPECT_FALSE(links(kShearFlowClosure, "cellflow_suspension")) << listed(kShearFlowClosure);
+  EXPECT_FALSE(links(kContactScenesClosure, "cellflow_suspension")) << listed(kContactScenesClosure);
+}
+
 // The body as the compression scene builds it (quasi_static.cc:
 // cell::build_cell_body, the cell mesh with the cytoplasm and nucleus materials).
 elastic::ElasticBody scene_body(const cell::CellParams& cell) {

@@ -18,6 +18,7 @@
 #include "client/spec_arg.h"
 #include "client/study_output.h"
 #include "client/suggest.h"
+#include "client/suspension_output.h"
 #include "client/svg_plot.h"
 #include "client/watch_printer.h"
 #include "io/h5md.h"
@@ -196,6 +197,114 @@ TEST(SvgPlot, FlowPlotsLieInsideTheFrameAndOffTheLegend) {
   expect_data_inside_and_off_the_legend(deformation_svg(d, 0.3, 0.33, "d"), 21);
 }
 
+// A suspension result as jobs/suspension writes it (the observables and
+// scalars the client reads): 3 cells, 6 samples.
+fs::path write_suspension_result(const std::string& stem) {
+  const fs::path path = fs::temp_directory_path() / (stem + std::to_string(getpid()) + ".h5");
+  auto writer = io::H5mdWriter::create(path.string());
+  EXPECT_TRUE(writer.ok());
+  io::H5mdWriter& w = **writer;
+  EXPECT_TRUE(w.write_scalar("/parameters/setup/capillary_number", 0.2).ok());
+  EXPECT_TRUE(w.write_scalar("/parameters/setup/volume_fraction", 0.11).ok());
+  EXPECT_TRUE(w.write_integer("/parameters/setup/cell_count", 3).ok());
+  for (int i = 0; i < 6; ++i) {
+    const double t = 0.01 * i, strain = 0.5 * i;
+    const double cells[3] = {0.02 * i, 0.03 * i, 0.01 * i};
+    EXPECT_TRUE(w.append_observable("strain", 100 * i, t, strain).ok());
+    EXPECT_TRUE(w.append_observable("mean_taylor_deformation", 100 * i, t, 0.02 * i).ok());
+    EXPECT_TRUE(w.append_observable("mean_inclination_rad", 100 * i, t, 0.5).ok());
+    EXPECT_TRUE(w.append_observable("relative_viscosity", 100 * i, t, 1.3).ok());
+    EXPECT_TRUE(w.append_count("contact_pairs", 100 * i, t, i % 2).ok());
+    const double average = i >= 2 ? 0.07 : 0.0;
+    EXPECT_TRUE(w.append_observable("average_taylor_deformation", 100 * i, t, average).ok());
+    EXPECT_TRUE(w.append_observable("average_taylor_deformation_error", 100 * i, t, average / 10).ok());
+    EXPECT_TRUE(w.append_observable("average_relative_viscosity", 100 * i, t, i >= 2 ? 1.3 : 0.0).ok());
+    EXPECT_TRUE(
+        w.append_observable("average_relative_viscosity_error", 100 * i, t, i >= 2 ? 0.01 : 0.0).ok());
+    EXPECT_TRUE(w.append_observable("cell_taylor_deformation", 100 * i, t, cells).ok());
+  }
+  EXPECT_TRUE(w.write_string("/summary/stop", "max_strain").ok());
+  EXPECT_TRUE(w.write_scalar("/summary/average_taylor_deformation", 0.07).ok());
+  EXPECT_TRUE(w.write_scalar("/summary/average_taylor_deformation_error", 0.007).ok());
+  EXPECT_TRUE(w.write_scalar("/summary/average_relative_viscosity", 1.3).ok());
+  EXPECT_TRUE(w.write_scalar("/summary/average_relative_viscosity_error", 0.01).ok());
+  EXPECT_TRUE(w.close().ok());
+  return path;
+}
+
+TEST(SuspensionOutput, ReadsTheMeanSeriesTheBandAndTheAverages) {
+  const fs::path path = write_suspension_result("cellflow_suspension_");
+  EXPECT_TRUE(is_suspension_result(path.string()));
+  auto series = read_suspension_series(path.string());
+  ASSERT_TRUE(series.ok()) << series.status().to_string();
+  EXPECT_EQ(series->table.columns,
+            (std::vector<std::string>{"sample", "time_s", "strain", "cell_count", "mean_taylor_deformation",
+                                      "mean_inclination_rad", "relative_viscosity", "contact_pairs",
+                                      "average_taylor_deformation", "average_taylor_deformation_error",
+                                      "average_relative_viscosity", "average_relative_viscosity_error"}));
+  ASSERT_EQ(series->table.rows.size(), 6u);
+  const std::vector<double>& row = series->table.rows[3];
+  EXPECT_EQ(row[0], 3.0);
+  EXPECT_EQ(row[1], 0.03);
+  EXPECT_EQ(row[2], 1.5);
+  EXPECT_EQ(row[3], 3.0);
+  EXPECT_EQ(row[4], 0.06);
+  EXPECT_EQ(row[7], 1.0);
+  EXPECT_EQ(row[8], 0.07);
+  ASSERT_EQ(series->min_taylor_deformation.size(), 6u);
+  EXPECT_EQ(series->min_taylor_deformation[3], 0.03);
+  EXPECT_EQ(series->max_taylor_deformation[3], 0.09);
+  EXPECT_EQ(curve_csv(series->table).substr(0, 30), "sample,time_s,strain,cell_coun");
+  // Mean, band edges and the average: every polyline vertex inside the frame.
+  const std::string svg = suspension_svg(*series, "s");
+  expect_data_inside_and_off_the_legend(svg, 3 * 6 + 2);
+  EXPECT_NE(svg.find("min and max over the cells"), std::string::npos);
+  EXPECT_NE(svg.find("time average 0.0700"), std::string::npos);
+
+  auto point = read_suspension_point(path.string(), "job-1");
+  ASSERT_TRUE(point.ok()) << point.status().to_string();
+  EXPECT_EQ(point->capillary_number, 0.2);
+  EXPECT_EQ(point->volume_fraction, 0.11);
+  EXPECT_EQ(point->cell_count, 3);
+  EXPECT_EQ(point->average_relative_viscosity_error, 0.01);
+  EXPECT_EQ(point->stop, "max_strain");
+  fs::remove(path);
+  // A shear-flow-like file is not a suspension.
+  const fs::path flow =
+      fs::temp_directory_path() / ("cellflow_not_suspension_" + std::to_string(getpid()) + ".h5");
+  {
+    auto writer = io::H5mdWriter::create(flow.string());
+    ASSERT_TRUE(writer.ok());
+    ASSERT_TRUE((*writer)->append_observable("strain", 0, 0.0, 0.0).ok());
+  }
+  EXPECT_FALSE(is_suspension_result(flow.string()));
+  EXPECT_EQ(read_suspension_series(flow.string()).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(read_suspension_point(flow.string(), "x").status().code(), StatusCode::kNotFound);
+  fs::remove(flow);
+}
+
+TEST(SuspensionOutput, AveragesAgainstCaAndVolumeFractionWithErrorBars) {
+  std::vector<SuspensionPoint> points = {{"a", 0.1, 0.11, 4, 0.09, 0.004, 1.35, 0.02, "max_strain"},
+                                         {"b", 0.2, 0.22, 8, 0.17, 0.006, 1.8, 0.05, "steady"},
+                                         {"c", 0.4, 0.11, 4, 0.3, 0.01, 1.2, 0.03, "cancelled"}};
+  for (SuspensionAxis axis : {SuspensionAxis::kCapillaryNumber, SuspensionAxis::kVolumeFraction}) {
+    const std::string svg = suspension_points_svg(points, axis, "set");
+    // One page holding two whole plots.
+    EXPECT_EQ(std::count(svg.begin(), svg.end(), '<') - std::count(svg.begin(), svg.end(), '>'), 0);
+    const std::regex nested("<svg ");
+    EXPECT_EQ(std::distance(std::sregex_iterator(svg.begin(), svg.end(), nested), std::sregex_iterator()), 3);
+    // Three markers in each plot (radius 4), one open (the cancelled job).
+    const std::regex marker(R"(<circle [^>]*r="4")");
+    EXPECT_EQ(std::distance(std::sregex_iterator(svg.begin(), svg.end(), marker), std::sregex_iterator()), 6);
+    const std::regex open(R"(<circle [^>]*r="4" fill="white")");
+    EXPECT_EQ(std::distance(std::sregex_iterator(svg.begin(), svg.end(), open), std::sregex_iterator()), 2);
+    // An error bar per point and plot.
+    const std::regex bar(R"(<line [^>]*stroke-width="1.5"/>)");
+    EXPECT_GE(std::distance(std::sregex_iterator(svg.begin(), svg.end(), bar), std::sregex_iterator()), 6);
+    EXPECT_EQ(svg.find("rigid spheres") != std::string::npos, axis == SuspensionAxis::kVolumeFraction);
+  }
+}
+
 TEST(StudyOutput, OverlaysAndSweptSteadyDLieInsideTheFrameAndOffTheLegend) {
   std::vector<LabelledCurve> curves;
   for (double e : {500.0, 1000.0, 2000.0}) {
@@ -343,6 +452,22 @@ TEST(WatchPrinter, LinesAreStableKeyValueText) {
   state.mutable_state_change()->set_reason("load point 3: J <= 0");
   EXPECT_EQ(event_line(state), "seq=8 attempt=0 state FAILED reason=\"load point 3: J <= 0\"");
   EXPECT_EQ(progress_bar(0.5, 75, "load point 2/4", 10), "[#####.....]  50%  ETA 1:15  load point 2/4");
+  v1::JobEvent suspension;
+  suspension.set_sequence(9);
+  auto* s = suspension.mutable_suspension_sample();
+  s->set_index(4);
+  s->set_strain(0.4);
+  s->set_cell_count(8);
+  s->set_mean_taylor_deformation(0.125);
+  s->set_relative_viscosity(1.5);
+  s->set_contact_pairs(2);
+  EXPECT_EQ(event_line(suspension).rfind("seq=9 attempt=0 sample index=4 ", 0), 0u) << event_line(suspension);
+  EXPECT_NE(event_line(suspension).find(" cells=8 mean_taylor_deformation=0.125 "), std::string::npos);
+  EXPECT_NE(event_line(suspension).find(" relative_viscosity=1.5 contact_pairs=2"), std::string::npos);
+  EXPECT_EQ(event_line(suspension).find("average_"), std::string::npos);  // none before the averaging starts
+  s->set_average_taylor_deformation(0.12);
+  s->set_average_taylor_deformation_error(0.003);
+  EXPECT_NE(event_line(suspension).find("average_taylor_deformation=0.12+-0.003"), std::string::npos);
 }
 
 TEST(ExitCodes, MatchTheDocumentedTable) {

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "cellflow/v1/worker.grpc.pb.h"
+#include "jobs/scene.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "rpc/rpc.h"
 #include "server/store.h"
@@ -55,6 +56,30 @@ TEST_F(ServiceTest, MeshFilePathsAreRefusedQuicklyAndSigtermStillExits) {
     EXPECT_NE(status.error_message().find("upload"), std::string::npos) << status.error_message();
     EXPECT_EQ(status.error_message().find(path), std::string::npos) << status.error_message();
     EXPECT_EQ(status.error_message().find("root:"), std::string::npos) << status.error_message();
+  }
+  // Every cell of a scene is checked: a suspension's second kind, and bytes smuggled into its first.
+  {
+    v1::SubmitJobRequest request;
+    auto* suspension = request.mutable_spec()->mutable_suspension();
+    suspension->set_capillary_number(0.1);
+    for (int k = 0; k < 2; ++k) {
+      auto* cells = suspension->add_cells();
+      *cells->mutable_cell() = small_compression().compression().cell();
+      cells->set_count(1);
+    }
+    suspension->mutable_cells(1)->mutable_cell()->set_mesh_file("/etc/passwd");
+    v1::SubmitJobResponse response;
+    grpc::Status status = client_->submit(request, &response);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(status.error_message().find("suspension.cells[1].cell.mesh_file"), std::string::npos)
+        << status.error_message();
+    EXPECT_EQ(status.error_message().find("/etc/passwd"), std::string::npos) << status.error_message();
+    suspension->mutable_cells(1)->mutable_cell()->clear_mesh_file();
+    suspension->mutable_cells(0)->mutable_cell()->set_mesh_bytes("$MeshFormat\n");
+    status = client_->submit(request, &response);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(status.error_message().find("suspension.cells[0].cell.mesh_bytes"), std::string::npos)
+        << status.error_message();
   }
   EXPECT_LT(std::chrono::steady_clock::now() - started, 5s);
   v1::ListJobsResponse jobs;
@@ -188,6 +213,77 @@ TEST_F(ServiceTest, ForgedWorkerCallsDoNotHarmTheJob) {
   watcher.join();
   EXPECT_EQ(watcher.sample_indices(), (std::vector<int>{0, 1, 2, 3}));
   EXPECT_GT(get(id).result_size_bytes(), 1000);
+}
+
+// A suspension sample is bounded like a request: more cells than are ever
+// streamed, a cell index outside the suspension or a centroid that is not
+// 3 values are refused (the stream and the lease go on); a retried sample
+// is stored once.
+TEST_F(ServiceTest, ForgedSuspensionSamplesAreRefusedAndRetriesStoredOnce) {
+  start_server(0);
+  const std::string id = submit(small_compression(4));
+  auto stub = worker_stub(worker_address_, worker_token_);
+  v1::LeaseJobRequest lease_request;
+  lease_request.set_worker_id("forger");
+  lease_request.set_wait_s(5);
+  v1::LeaseJobResponse leased;
+  ASSERT_TRUE(
+      with_deadline([&](grpc::ClientContext& c) { return stub->LeaseJob(&c, lease_request, &leased); }).ok());
+  ASSERT_TRUE(leased.found());
+  Watcher watcher(*client_, id);
+
+  auto sample_of = [&](int cells, int cell_count) {
+    v1::WorkerReport report;
+    *report.mutable_lease() = leased.lease();
+    v1::SuspensionSample* s = report.mutable_suspension_sample();
+    s->set_index(0);
+    s->set_cell_count(cell_count);
+    s->set_mean_taylor_deformation(0.1);
+    for (int i = 0; i < cells; ++i) {
+      v1::SuspendedCellState* c = s->add_cells();
+      c->set_cell(i);
+      c->set_taylor_deformation(0.1);
+      for (int d = 0; d < 3; ++d) c->add_centroid_m(1e-6);
+    }
+    return report;
+  };
+  grpc::ClientContext context;
+  auto stream = stub->ReportJob(&context);
+  auto send = [&](v1::WorkerReport report, int report_id) {
+    report.set_report_id(report_id);
+    EXPECT_TRUE(stream->Write(report));
+    v1::ReportAck ack;
+    EXPECT_TRUE(stream->Read(&ack));
+    EXPECT_TRUE(ack.lease_valid());
+    return ack.error();
+  };
+  // 257 cells (one more than jobs::kMaxStreamedSuspensionCells) of a 1000-cell suspension.
+  EXPECT_NE(send(sample_of(jobs::kMaxStreamedSuspensionCells + 1, 1000), 1).find("suspension_sample.cells"),
+            std::string::npos);
+  EXPECT_NE(send(sample_of(4, 2), 2).find("more cells than cell_count"), std::string::npos);
+  v1::WorkerReport outside = sample_of(2, 2);
+  outside.mutable_suspension_sample()->mutable_cells(1)->set_cell(7);
+  EXPECT_NE(send(outside, 3).find("cells[1].cell"), std::string::npos);
+  v1::WorkerReport flat = sample_of(2, 2);
+  flat.mutable_suspension_sample()->mutable_cells(0)->add_centroid_m(0.0);
+  EXPECT_NE(send(flat, 4).find("cells[0].centroid_m"), std::string::npos);
+  // A good sample, then its retry: both acknowledged, stored once.
+  EXPECT_EQ(send(sample_of(2, 2), 5), "");
+  EXPECT_EQ(send(sample_of(2, 2), 6), "");
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
+  ASSERT_TRUE(eventually([&] { return watcher.max_sample_index() >= 0; }, 10s));
+
+  v1::Job cancelled;
+  ASSERT_TRUE(client_->cancel(id, &cancelled).ok());
+  watcher.join();
+  int suspension_samples = 0;
+  for (const v1::JobEvent& e : watcher.events()) {
+    if (!e.has_suspension_sample()) continue;
+    ++suspension_samples;
+    EXPECT_EQ(e.suspension_sample().cells_size(), 2);
+  }
+  EXPECT_EQ(suspension_samples, 1);
 }
 
 TEST_F(ServiceTest, SecondServerOnTheSameDataDirIsRefused) {

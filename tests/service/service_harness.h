@@ -315,6 +315,7 @@ class Watcher {
     for (const auto& e : events()) {
       if (e.has_force_sample()) out.push_back(e.force_sample().index());
       if (e.has_deformation_sample()) out.push_back(e.deformation_sample().index());
+      if (e.has_suspension_sample()) out.push_back(e.suspension_sample().index());
     }
     return out;
   }

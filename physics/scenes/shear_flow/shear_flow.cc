@@ -24,6 +24,7 @@
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
+#include "physics/scenes/shear_flow/couette_fluid.h"
 #include "physics/scenes/shear_flow/shear_flow_checkpoint.h"
 #include "physics/scenes/shear_flow/shear_flow_internal.h"
 #include "physics/scenes/shear_flow/shear_flow_resolution.h"
@@ -67,26 +68,7 @@ void emit_positions(Run& run, double time_s, const std::vector<double>& x_lb) {
 template <class T>
 void emit_fluid(Run& run, const lb::Fluid& fluid, int index, double time_s) {
   if (!run.callbacks->on_fluid_velocity || !run.params->numerics.fluid_snapshots) return;
-  const lb::VectorField<const T> u = fluid.velocity_field<T>();
-  const std::size_t n = fluid.num_nodes();
-  const double scale = run.plan.units.velocity_to_si(1.0);
-  std::vector<double> ux(n), uy(n), uz(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    ux[i] = scale * static_cast<double>(u.x[i]);
-    uy[i] = scale * static_cast<double>(u.y[i]);
-    uz[i] = scale * static_cast<double>(u.z[i]);
-  }
-  FluidVelocitySnapshot snap;
-  snap.index = index;
-  snap.time_s = time_s;
-  snap.nx = fluid.nx();
-  snap.ny = fluid.ny();
-  snap.nz = fluid.nz();
-  snap.spacing_m = run.plan.units.dx_m();
-  snap.ux_m_per_s = ux;
-  snap.uy_m_per_s = uy;
-  snap.uz_m_per_s = uz;
-  run.callbacks->on_fluid_velocity(snap);
+  emit_fluid_velocity(fluid, run.plan.units, index, time_s, run.callbacks->on_fluid_velocity);
 }
 
 std::string where(const Run& run, std::int64_t step) {
@@ -468,44 +450,16 @@ ShearFlowResult run_attempt(const PlannedShearFlow& planned, const ShearFlowCall
   // The fluid: walls at y = 0 and H moving at -u_wall and +u_wall.
   const ShearFlowSetup& setup = run.plan.setup;
   const double u_wall_lb = u.velocity_to_lattice(setup.wall_speed_m_per_s);
-  lb::FluidParams fp;
-  fp.nx = setup.nx;
-  fp.ny = setup.ny;
-  fp.nz = setup.nz;
-  fp.tau = n.relaxation_time;
-  fp.walls_y = true;
-  fp.lower_wall_velocity = {-u_wall_lb, 0.0, 0.0};
-  fp.upper_wall_velocity = {u_wall_lb, 0.0, 0.0};
-  fp.force_field = true;
-  fp.velocity_field = true;
-  fp.precision = n.single_precision ? lb::Precision::kFloat : lb::Precision::kDouble;
-  fp.threads = n.threads;
   // lambda != 1: phase 1 (the cell's inside) relaxes with tau_in.
   const bool contrast = params.viscosity_ratio != 1.0;
-  if (contrast) fp.phase_taus = {setup.inner_relaxation_time};
-  StatusOr<lb::Fluid> fluid = lb::make_fluid(fp);
+  StatusOr<lb::Fluid> fluid =
+      make_couette_fluid(setup, u, n, prefix,
+                         contrast ? std::vector<double>{setup.inner_relaxation_time} : std::vector<double>{});
   if (!fluid.ok()) {
-    result.status = Status(fluid.status().code(), prefix + "numerics: " + fluid.status().message());
+    result.status = fluid.status();
     return result;
   }
-  auto start_fluid = [&] {
-    {
-      // Steady plane Couette profile u_x(y) = u_wall (2 y / H - 1), nodes at y = j + 1/2.
-      const std::size_t nodes = fluid->num_nodes();
-      std::vector<double> ux(nodes, 0.0), zero(nodes, 0.0);
-      for (int k = 0; k < setup.nz; ++k) {
-        for (int j = 0; j < setup.ny; ++j) {
-          const double velocity = u_wall_lb * (2.0 * (j + 0.5) / setup.ny - 1.0);
-          for (int i = 0; i < setup.nx; ++i) ux[fluid->node(i, j, k)] = velocity;
-        }
-      }
-      lb::set_equilibrium(*fluid, {}, ux, zero, zero);
-    }
-    // After the start profile's two per-node buffers are freed: this one holds
-    // three of its own (the job's memory estimate counts the larger set, not
-    // both; together they overran it by 3 doubles per node, spec fuzzer).
-    lb::update_velocity_field(*fluid);
-  };
+  auto start_fluid = [&] { start_couette_profile(*fluid, u_wall_lb); };
   start_fluid();
 
   // Vertices at the box centre (lattice units).

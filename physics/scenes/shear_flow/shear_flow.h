@@ -192,6 +192,18 @@ double default_radius_offset(ibm::Kernel kernel);
 // kernel's default when that is negative.
 double radius_offset(const ShearFlowNumerics& numerics);
 
+// The stability check of the explicit elastic update that run_shear_flow
+// does before it starts, for any flow cell (the suspension scene checks each
+// kind with it): k_max / (6 pi eta_lb dx s^2), the stiffest vertex mode of
+// `body` at `positions_m` (lattice units; s the marker scale of
+// params.numerics.hydrodynamic_radius_offset for params.cell.radius_m).
+// The ratio goes to *stiffness_ratio (when not null) also on refusal;
+// kInvalidArgument above the limit (numerics.max_stiffness_ratio or the
+// kernel's), naming the options under `prefix` to change.
+Status check_flow_stiffness(const ShearFlowParams& params, const units::Units& units,
+                            const elastic::ElasticBody& body, const std::vector<double>& positions_m,
+                            std::string_view prefix, double capillary_number, double* stiffness_ratio);
+
 // Every field out of range, named relative to the params
 // ("numerics.cells_per_radius", "cell.radius_m") with its allowed range.
 Violations violations(const ShearFlowParams& params);

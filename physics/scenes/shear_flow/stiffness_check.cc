@@ -55,15 +55,27 @@ double stiffest_mode(const elastic::ElasticBody& body, const std::vector<double>
 Status check_stiffness(const ShearFlowParams& params, const units::Units& u, const elastic::ElasticBody& body,
                        const std::vector<double>& positions_m, const std::string& prefix,
                        ShearFlowResult& result) {
+  return check_flow_stiffness(params, u, body, positions_m, prefix, result.setup.capillary_number,
+                              &result.stiffness_ratio);
+}
+
+}  // namespace shear_flow_detail
+
+Status check_flow_stiffness(const ShearFlowParams& params, const units::Units& u,
+                            const elastic::ElasticBody& body, const std::vector<double>& positions_m,
+                            std::string_view prefix_view, double capillary_number, double* ratio_out) {
+  using shear_flow_detail::kPi;
+  const std::string prefix(prefix_view);
   const ShearFlowNumerics& n = params.numerics;
-  const double k_max = stiffest_mode(body, positions_m, n.threads);
+  const double k_max = shear_flow_detail::stiffest_mode(body, positions_m, n.threads);
   // k_lb = F_lb / x_lb = force_to_lattice(k_max dx)
   const double k_lb = u.force_to_lattice(k_max * u.dx_m());
   const double drag_lb = 6.0 * kPi * u.kinematic_viscosity_lattice();
   // Scaled markers (numerics.hydrodynamic_radius_offset) spread F / s and
   // move the vertices by U / s: the coupling sees the stiffness k / s^2.
   const double s = 1.0 - radius_offset(n) * u.dx_m() / params.cell.radius_m;
-  result.stiffness_ratio = k_lb / drag_lb / (s * s);
+  const double stiffness_ratio = k_lb / drag_lb / (s * s);
+  if (ratio_out != nullptr) *ratio_out = stiffness_ratio;
   // The calibrated limits hold for per-tet volume terms, whose stiffest modes
   // alternate from vertex to vertex and are smoothed away by the kernel; the
   // nodal average's stiffest modes span a vertex patch and pass through it:
@@ -72,12 +84,12 @@ Status check_stiffness(const ShearFlowParams& params, const units::Units& u, con
   const double calibrated = default_stiffness_limit(n.ibm_kernel) *
                             (n.volumetric == elastic::VolumetricTerm::kNodalAverage ? 0.5 : 1.0);
   const double limit = n.max_stiffness_ratio > 0.0 ? n.max_stiffness_ratio : calibrated;
-  if (!(result.stiffness_ratio <= limit)) {
+  if (!(stiffness_ratio <= limit)) {
     return invalid_argument(
         "the explicit elastic update would be unstable: stiffest vertex mode k_max / (6 pi eta dx) = " +
-        number_text(result.stiffness_ratio, 6) + " (lattice units) exceeds the limit " +
-        number_text(limit, 6) + " of " + std::string(ibm::kernel_name(n.ibm_kernel)) + " (" + prefix +
-        "numerics.max_stiffness_ratio; Ca = " + number_text(result.setup.capillary_number, 6) +
+        number_text(stiffness_ratio, 6) + " (lattice units) exceeds the limit " + number_text(limit, 6) +
+        " of " + std::string(ibm::kernel_name(n.ibm_kernel)) + " (" + prefix +
+        "numerics.max_stiffness_ratio; Ca = " + number_text(capillary_number, 6) +
         "). The ratio scales as dt / (eta / mu): lower " + prefix + "numerics.target_reynolds_number (now " +
         number_text(n.target_reynolds_number, 6) + ") or " + prefix + "numerics.relaxation_time (now " +
         number_text(n.relaxation_time, 6) + "), raise " + prefix + "numerics.cells_per_radius (now " +
@@ -88,8 +100,6 @@ Status check_stiffness(const ShearFlowParams& params, const units::Units& u, con
   }
   return Status::ok_status();
 }
-
-}  // namespace shear_flow_detail
 
 double default_stiffness_limit(ibm::Kernel kernel) {
   switch (kernel) {

@@ -16,6 +16,11 @@
 //     cell-free value; time averages after a transient with block-averaged
 //     standard errors; contact counts.
 //
+// Implementation: suspension_plan.cc (validation, plan, placement via
+// placement.h), suspension.cc (time loop), cell_contact.h (repulsion),
+// suspension_statistics.h (block averages). No checkpointing: a run always
+// starts from step 0.
+//
 // SI at this interface; lattice units only inside, converted through
 // physics/units. This header is the contract between the scene (physics)
 // and its job (jobs/suspension); fields may be added, none removed.
@@ -34,26 +39,27 @@
 #include "physics/core/violations.h"
 #include "physics/mesh/tet_mesh.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
+#include "physics/scenes/suspension/placement.h"
 #include "physics/units/units.h"
 
 namespace cellflow::scenes {
 
-// A centre (box coordinates, metres) and a rotation vector (axis x angle,
-// radians) of the cell's mesh about its centre.
-struct CellPlacement {
-  std::array<double, 3> centre_m{};
-  std::array<double, 3> rotation_rad{};
-};
+// CellPlacement (a centre and a rotation vector): placement.h.
 
 // Default mesh of a suspended cell (smaller than the single-cell default:
 // N cells share the step).
 inline constexpr int kSuspensionDefaultVertexCount = 1000;
+inline cell::CellParams suspension_cell_defaults() {
+  cell::CellParams cell;
+  cell.target_vertex_count = kSuspensionDefaultVertexCount;
+  return cell;
+}
 
 // One kind of cell; exactly one of count > 0, volume_fraction > 0 or
 // placements non-empty.
 struct SuspendedCellKind {
-  cell::CellParams cell;         // target_vertex_count default kSuspensionDefaultVertexCount
-  double viscosity_ratio = 1.0;  // lambda = eta_in / eta_out in [0.01, 100]
+  cell::CellParams cell = suspension_cell_defaults();  // target_vertex_count kSuspensionDefaultVertexCount
+  double viscosity_ratio = 1.0;                        // lambda = eta_in / eta_out in [0.01, 100]
   int count = 0;
   double volume_fraction = 0.0;  // N = round(phi V_box / (4/3 pi R^3)), in (0, 0.5]
   std::vector<CellPlacement> placements;
@@ -65,12 +71,14 @@ struct SuspensionNumerics {
   // max_strain 20 (suspension_numerics_defaults()).
   ShearFlowNumerics flow;
   std::uint64_t seed = 1;
-  double contact_range_dx = 1.0;       // repulsion range, lattice spacings, (0, 4]
-  double contact_strength = 1.0;       // at zero gap, x mu dx^2 of the cell, (0, 1e3]
-  double average_after_strain = 5.0;   // time averages start here, >= 0
-  double target_standard_error = 0.0;  // > 0: stop at this relative SE of mean D; 0 off
-  int marking_every_steps = 1;         // [1, 1000]
-  double min_gap_dx = 1.0;             // placement gap, lattice spacings, [0, 10]
+  double contact_range_dx = 1.0;      // repulsion range, lattice spacings, (0, 4]
+  double contact_strength = 1.0;      // at zero gap, x mu dx^2 of the cell, (0, 1e3]
+  double average_after_strain = 5.0;  // time averages start here, >= 0
+  // > 0: stop (ShearFlowStop::kSteady) at the first sample where the block-averaged SE of the
+  // mean D, over at least 32 samples after average_after_strain, is below this fraction of it; 0 off.
+  double target_standard_error = 0.0;
+  int marking_every_steps = 1;  // [1, 1000]
+  double min_gap_dx = 1.0;      // placement gap, lattice spacings, [0, 10]
 };
 SuspensionNumerics suspension_numerics_defaults();
 
@@ -85,9 +93,10 @@ struct SuspensionParams {
 };
 
 // Every field out of range, named relative to the params
-// ("kinds[1].viscosity_ratio", "numerics.contact_range_dx",
-// "kinds[0].placements[3]" for an overlapping or outside place) with its
-// allowed range. Does not mesh or place.
+// ("kinds[1].viscosity_ratio", "numerics.contact_range_dx", a non-finite
+// "kinds[0].placements[3]") with its allowed range. Does not mesh or place:
+// an overlapping or outside place needs the lattice's box and is refused by
+// plan_suspension_run ("suspension.kinds[0].placements[3]").
 Violations violations(const SuspensionParams& params);
 Status validate(const SuspensionParams& params, std::string_view field_prefix = "suspension.");
 
@@ -116,7 +125,7 @@ class PlannedSuspension {
   PlannedSuspension() = default;
   SuspensionParams params_;
   SuspensionSetup setup_;
-  units::Units units_;
+  units::Units units_{1.0, 1.0, 1.0, 1.0};  // replaced by the plan
   std::vector<int> cell_kinds_;
   std::vector<CellPlacement> placements_;
 };

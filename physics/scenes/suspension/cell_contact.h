@@ -1,0 +1,80 @@
+// Short-range repulsion between the surface vertices of different cells and
+// between surface vertices and the walls (issue 15, item 2), in lattice units.
+//
+// Force law, for a gap d below the range r_c (d the vertex-vertex distance,
+// or the distance of a vertex from the wall plane):
+//   E(d) = F0 r_c / 3 (1 - d / r_c)^3,   F(d) = -dE/dd = F0 (1 - d / r_c)^2,
+// zero beyond r_c, and F = F0 (E continued linearly) at a negative gap (a
+// vertex past a wall plane). F0 is the force at zero gap: the force and its first
+// derivative vanish at r_c (no impulse when a pair enters the range), and the
+// force grows quadratically to F0 as the gap closes. The pair force acts
+// along the line between the two vertices, equal and opposite (momentum
+// conserved: the spread forces of a pair cancel in the fluid's total
+// momentum); the wall force along the wall normal.
+//
+// Search: the surface vertices of all cells are binned into a cell list of
+// bins at least r_c wide over the box (periodic in x and z; counting sort,
+// linear in the vertex count), and each vertex looks at the 27 bins around
+// its own: the cost grows linearly with the number of vertices at a fixed
+// density.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <utility>
+#include <vector>
+
+namespace cellflow::contact_repulsion {
+
+struct RepulsionParams {
+  double range = 1.0;         // r_c, lattice spacings, > 0
+  double strength = 0.0;      // F0, lattice force units, >= 0
+  double box[3] = {0, 0, 0};  // periodic lengths in x and z, wall distance H in y (lattice units)
+  // The wall planes the gap is measured from: y = wall_offset and y = H - wall_offset.
+  double wall_offset = 0.0;
+  bool walls = true;
+};
+
+// The force magnitude F(d) and energy E(d) of the law above (0 beyond range).
+double repulsion_force(double gap, double range, double strength);
+double repulsion_energy(double gap, double range, double strength);
+
+// One cell's vertex state: positions and forces (3 per vertex, interleaved,
+// lattice units; forces are added to) and the vertices that take part.
+struct ContactCell {
+  const double* positions = nullptr;
+  double* forces = nullptr;
+  std::span<const int> surface_vertices;
+};
+
+struct RepulsionReport {
+  int contact_pairs = 0;  // cell pairs with at least one vertex pair in range
+  int vertex_pairs = 0;   // vertex pairs in range
+  int wall_vertices = 0;  // vertices within range of a wall
+  double energy = 0.0;    // total repulsion energy (lattice units)
+  double min_gap =
+      0.0;  // smallest vertex-vertex distance between different cells seen in range (range if none)
+};
+
+// Adds the repulsion forces to every cell's forces. Keeps its bins between
+// calls (no allocation after the first at a fixed vertex count).
+class RepulsionSearch {
+ public:
+  explicit RepulsionSearch(const RepulsionParams& params);
+  RepulsionReport add_forces(std::span<const ContactCell> cells);
+  const RepulsionParams& params() const { return params_; }
+
+ private:
+  RepulsionParams params_;
+  int bins_[3] = {1, 1, 1};
+  double bin_size_[3] = {1, 1, 1};
+  std::vector<int> bin_start_;              // counting sort offsets, bins + 1
+  std::vector<int> bin_of_;                 // per flattened vertex
+  std::vector<int> fill_;                   // counting sort cursors
+  std::vector<int> sorted_;                 // flattened vertex indices in bin order
+  std::vector<std::pair<int, int>> flat_;   // (cell, vertex) in input order
+  std::vector<double> wrapped_;             // wrapped positions, 3 per flattened vertex
+  std::vector<std::pair<int, int>> pairs_;  // touching cell pairs of one call
+};
+
+}  // namespace cellflow::contact_repulsion

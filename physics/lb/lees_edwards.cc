@@ -54,35 +54,66 @@ double LeesEdwards::offset(std::int64_t time_step) const {
   return delta < 0.0 ? delta + nx_ : delta;
 }
 
+// Row by row (not node by node through lb::populations: 5 x faster, the
+// moments were a quarter of the step): the pre-collision deviation h_q of
+// the nodes of one row is one row of the storage, shifted by c_x in the
+// swapped AA layout.
 template <class T>
 void LeesEdwards::layer_moments(const Fluid& fluid) {
   const FluidParams& p = fluid.params();
+  const std::size_t stride = FluidAccess::stride(fluid);
+  const T* a = FluidAccess::populations<T>(fluid).data();
+  bool swapped = false;
+  if (p.streaming == Streaming::kTwoArray)
+    a += FluidAccess::current(fluid) * kQ * stride;
+  else
+    swapped = FluidAccess::aa_swapped(fluid);
   const VectorField<const T> force = fluid.force_field<T>();
+  const int nx = nx_;
   const int layers[2] = {0, p.ny - 1};
   for (int l = 0; l < 2; ++l) {
+    const int j = layers[l];
     for (int k = 0; k < nz_; ++k) {
-      for (int i = 0; i < nx_; ++i) {
-        const std::array<double, kQ> f = populations(fluid, i, layers[l], k);
-        double rho = 0.0, jx = 0.0, jy = 0.0, jz = 0.0;
-        for (int q = 0; q < kQ; ++q) {
-          rho += f[q];
-          jx += kCx[q] * f[q];
-          jy += kCy[q] * f[q];
-          jz += kCz[q] * f[q];
+      const std::size_t m0 = static_cast<std::size_t>(nx) * (static_cast<std::size_t>(l) * nz_ + k);
+      double* rho = rho_.data() + m0;
+      double* jx = ux_.data() + m0;
+      double* jy = uy_.data() + m0;
+      double* jz = uz_.data() + m0;
+      for (int i = 0; i < nx; ++i) rho[i] = jx[i] = jy[i] = jz[i] = 0.0;
+      for (int q = 0; q < kQ; ++q) {
+        // Swapped AA layout: slot qbar at x - c_q holds f*_q of the last collision.
+        const T* row =
+            swapped ? a + opposite(q) * stride + fluid.node(0, wrap(j - kCy[q], p.ny), wrap(k - kCz[q], nz_))
+                    : a + q * stride + fluid.node(0, j, k);
+        // h[i] = row[wrap(i + shift)], |shift| <= 1: the wrap only at the ends.
+        const int shift = swapped ? -kCx[q] : 0;
+        double* h = row_.data();
+        for (int i = 1; i < nx - 1; ++i) h[i] = static_cast<double>(row[i + shift]);
+        h[0] = static_cast<double>(row[wrap(shift, nx)]);
+        h[nx - 1] = static_cast<double>(row[wrap(nx - 1 + shift, nx)]);
+        const double cx = kCx[q], cy = kCy[q], cz = kCz[q];
+        for (int i = 0; i < nx; ++i) {
+          const double v = h[i];
+          rho[i] += v;
+          jx[i] += cx * v;
+          jy[i] += cy * v;
+          jz[i] += cz * v;
         }
+      }
+      const std::size_t at = fluid.node(0, j, k);
+      for (int i = 0; i < nx; ++i) {
         double fx = p.uniform_force[0], fy = p.uniform_force[1], fz = p.uniform_force[2];
         if (force.x != nullptr) {
-          const std::size_t at = fluid.node(i, layers[l], k);
-          fx += force.x[at];
-          fy += force.y[at];
-          fz += force.z[at];
+          fx += force.x[at + i];
+          fy += force.y[at + i];
+          fz += force.z[at + i];
         }
         // u = (sum_i f_i c_i + F/2) / rho   (Guo 2002, eq. 7): the velocity of the collision
-        const std::size_t m = static_cast<std::size_t>(nx_) * (static_cast<std::size_t>(l) * nz_ + k) + i;
-        rho_[m] = rho;
-        ux_[m] = (jx + 0.5 * fx) / rho;
-        uy_[m] = (jy + 0.5 * fy) / rho;
-        uz_[m] = (jz + 0.5 * fz) / rho;
+        const double r = 1.0 + rho[i];  // deviations: rho = 1 + sum_q h_q
+        rho[i] = r;
+        jx[i] = (jx[i] + 0.5 * fx) / r;
+        jy[i] = (jy[i] + 0.5 * fy) / r;
+        jz[i] = (jz[i] + 0.5 * fz) / r;
       }
     }
   }

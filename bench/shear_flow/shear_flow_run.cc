@@ -4,6 +4,7 @@
 //                  float=1 kernel=peskin4 max_strain=40 tol=2e-3 window=2
 //                  sample=0.1 nu=0.48 threads=0 every=1 ratio=2 offset=0.5
 //                  checkpoint=PATH checkpoint_every_s=300 resume=PATH
+//                  boundaries=walls|lees_edwards
 // checkpoint=PATH writes a checkpoint at the first sample after each
 // checkpoint_every_s of wall time (0: at every sample) and prints its cost
 // against the time step; resume=PATH resumes from one.
@@ -49,6 +50,14 @@ int main(int argc, char** argv) {
       return 2;
     }
     n.ibm_kernel = *k;
+  }
+  if (args.count("boundaries")) {
+    StatusOr<scenes::ShearFlowBoundaries> b = scenes::parse_boundaries(args["boundaries"], "boundaries");
+    if (!b.ok()) {
+      std::fprintf(stderr, "%s\n", b.status().message().c_str());
+      return 2;
+    }
+    n.boundaries = *b;
   }
   n.max_strain = get("max_strain", n.max_strain);
   n.steady_tolerance = get("tol", n.steady_tolerance);

@@ -65,6 +65,12 @@ StatusOr<scenes::ShearFlowParams> convert(const v1::ShearFlowSpec& spec, std::st
     }
     n.hydrodynamic_radius_offset = in.hydrodynamic_radius_offset();
   }
+  if (in.has_boundaries()) {
+    StatusOr<scenes::ShearFlowBoundaries> boundaries =
+        scenes::parse_boundaries(in.boundaries(), prefix + "numerics.boundaries");
+    if (!boundaries.ok()) return boundaries.status();
+    n.boundaries = *boundaries;
+  }
   if (in.volumetric_term() == v1::VOLUMETRIC_TERM_PER_TET) {
     n.volumetric = elastic::VolumetricTerm::kPerTet;
   } else if (in.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {

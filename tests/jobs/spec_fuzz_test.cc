@@ -304,6 +304,8 @@ void fill_shear_flow(Gen& g, const MeshPool& pool, v1::ShearFlowSpec* s) {
   if (g.set()) n->set_max_strain(g.real({40.0, 1.0, 0.5, 2.0, 1e4}));
   if (g.set()) n->set_max_stiffness_ratio(g.real({0.0, 2.5, 100.0}));
   if (g.chance(0.3)) n->set_volumetric_term(static_cast<v1::VolumetricTerm>(g.integer({0, 1, 2, 7})));
+  if (g.set())
+    n->set_boundaries(g.chance(0.8) ? std::string(g.chance(0.5) ? "walls" : "lees_edwards") : g.bytes(16));
 }
 
 v1::JobSpec make_spec(long long seed, long long index, const MeshPool& pool) {

@@ -83,15 +83,17 @@ Status write_markdown(const std::string& path, const std::string& heading,
   const bool result = !labels.result_md.empty(), analytic = !labels.analytic_md.empty();
   std::ostringstream out;
   out << heading << "\n\n";
-  out << "| setting | value | wall time [s] | " << (result ? labels.result_md + " | " : "")
-      << "error | total error | " << (analytic ? labels.analytic_md + " | " : "") << labels.iterations_md
-      << " | status |\n";
-  out << "|---|---|---|" << (result ? "---|" : "") << "---|---|" << (analytic ? "---|" : "") << "---|---|\n";
+  out << "| setting | value | wall time [s] | " << (labels.cpu_time_axis ? "CPU time [s] | " : "")
+      << (result ? labels.result_md + " | " : "") << "error | total error | "
+      << (analytic ? labels.analytic_md + " | " : "") << labels.iterations_md << " | status |\n";
+  out << "|---|---|---|" << (labels.cpu_time_axis ? "---|" : "") << (result ? "---|" : "") << "---|---|"
+      << (analytic ? "---|" : "") << "---|---|\n";
   for (const auto& r : rows) {
     std::string value = r.value;
     if (r.is_default) value += " **(default)**";
     if (r.is_reference) value += " (reference)";
     out << "| " << r.sweep << " | " << value << " | " << number_text(r.wall_s, "%.2f") << " | ";
+    if (labels.cpu_time_axis) out << number_text(r.cpu_s, "%.2f") << " | ";
     if (result) out << (std::isfinite(r.result) ? number_text(r.result, "%.5g") : "n/a") << " | ";
     out << (r.is_reference && r.error == 0.0 ? "0 (reference)" : error_text(r.error)) << " | "
         << error_text(r.total_error) << " | ";
@@ -107,13 +109,14 @@ Status write_svg(const std::string& path, const std::string& title, const std::v
   std::vector<const AccuracyRow*> points;
   std::set<std::string> seen;
   for (const auto& r : rows) {
-    if (!(std::isfinite(r.total_error) && r.total_error > 0.0 && r.wall_s > 0.0)) continue;
+    const double t = labels.cpu_time_axis ? r.cpu_s : r.wall_s;
+    if (!(std::isfinite(r.total_error) && r.total_error > 0.0 && t > 0.0)) continue;
     if (!seen.insert(r.run_key).second) continue;
     points.push_back(&r);
   }
   std::vector<double> times, errors;
   for (const auto* p : points) {
-    times.push_back(p->wall_s);
+    times.push_back(labels.cpu_time_axis ? p->cpu_s : p->wall_s);
     errors.push_back(p->total_error);
   }
   const std::vector<bool> front = pareto_front(times, errors);
@@ -171,8 +174,8 @@ Status write_svg(const std::string& path, const std::string& title, const std::v
       << "\" stroke=\"#ddd\"/>\n";
     s << "<text x=\"" << kLeft - 8 << "\" y=\"" << y + 4 << "\" text-anchor=\"end\">1e" << d << "</text>\n";
   }
-  s << "<text x=\"" << kLeft + plot_w / 2 << "\" y=\"" << kHeight - 25
-    << "\" text-anchor=\"middle\">wall time [s]</text>\n";
+  s << "<text x=\"" << kLeft + plot_w / 2 << "\" y=\"" << kHeight - 25 << "\" text-anchor=\"middle\">"
+    << (labels.cpu_time_axis ? "CPU time [s]" : "wall time [s]") << "</text>\n";
   s << "<text x=\"20\" y=\"" << kTop + plot_h / 2 << "\" text-anchor=\"middle\" transform=\"rotate(-90 20 "
     << kTop + plot_h / 2 << ")\">" << xml_escaped(labels.error_axis) << "</text>\n";
 

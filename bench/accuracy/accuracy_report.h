@@ -38,6 +38,9 @@ struct ReportLabels {
   std::string result_csv, result_md;                        // e.g. "steady_D", "steady D"
   std::string analytic_csv, analytic_md;                    // e.g. "error_small_ca", "error vs 5/4 Ca"
   std::string error_axis = "largest relative force error";  // y axis of the plot
+  // Plot (and list in the table) the process CPU time instead of the wall
+  // time: on a loaded machine wall times measure the neighbours.
+  bool cpu_time_axis = false;
 };
 
 // `x` through printf format `fmt` (one double), for tables and notes.
@@ -50,7 +53,7 @@ Status write_csv(const std::string& path, const std::vector<AccuracyRow>& rows,
 Status write_markdown(const std::string& path, const std::string& heading,
                       const std::vector<AccuracyRow>& rows, const ReportLabels& labels = {});
 
-// Plots total_error against wall_s, one colour per sweep (in the order the
+// Plots total_error against wall_s (cpu_s with labels.cpu_time_axis), one colour per sweep (in the order the
 // sweeps first appear), each run once (by run_key); rows with no positive
 // finite error (the reference itself, a failed run) are left out. The Pareto
 // front over the plotted runs is a line through its points; the default is

@@ -2,6 +2,7 @@
 //
 //   cellflow-bench accuracy compression [--out DIR] [--coarse] [--threads 1]
 //   cellflow-bench accuracy shear_flow  [--out DIR] [--coarse] [--threads 1] [--resume]
+//                                       [--max-cells-per-radius C] [--cpu-time]
 //   cellflow-bench accuracy all         [--out DIR] [--coarse] [--threads 1]
 //
 // Sweeps the settings that trade time for accuracy of a scene and writes
@@ -31,6 +32,15 @@ int main(int argc, char** argv) {
   bool coarse = false;
   int threads = 1;
   bool resume = false;
+  double max_cells_per_radius = 0.0;
+  bool cpu_time = false;
+  shear_flow
+      ->add_option("--max-cells-per-radius", max_cells_per_radius,
+                   "leave out lattices finer than this (a CPU budget; at least three remain)")
+      ->check(CLI::Range(0.0, 64.0));
+  shear_flow->add_flag(
+      "--cpu-time", cpu_time,
+      "plot and list the process CPU time (wall times on a loaded machine measure the load)");
   for (CLI::App* scene : {shear_flow, all})
     scene->add_flag("--resume", resume,
                     "shear flow: reuse the runs recorded in OUT/shear_flow_runs.tsv by an earlier sweep "
@@ -58,6 +68,8 @@ int main(int argc, char** argv) {
     cellflow::bench::ShearFlowSweep sweep = cellflow::bench::shear_flow_sweep(coarse);
     sweep.threads = threads;
     sweep.resume = resume;
+    sweep.max_cells_per_radius = max_cells_per_radius;
+    sweep.cpu_time_axis = cpu_time;
     report("shear_flow", cellflow::bench::run_shear_flow_accuracy(sweep, out_dir, coarse));
   }
   return failures == 0 ? 0 : 1;

@@ -1,5 +1,6 @@
 #include "bench/accuracy/shear_flow_accuracy.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -31,19 +32,21 @@ struct Setting {
   int vertices = 0;
   ibm::Kernel kernel = ibm::Kernel::kPeskin4;
   bool single_precision = true;
-  auto tie() const { return std::tie(cells_per_radius, vertices, kernel, single_precision); }
+  double radius_offset = 0.0;  // hydrodynamic_radius_offset, lattice spacings (0: none)
+  auto tie() const { return std::tie(cells_per_radius, vertices, kernel, single_precision, radius_offset); }
   bool operator<(const Setting& o) const { return tie() < o.tie(); }
   bool operator==(const Setting& o) const { return tie() == o.tie(); }
   std::string key() const {
     std::ostringstream s;
     s << cells_per_radius << " cells/R, " << vertices << " vertices, " << ibm::kernel_name(kernel) << ", "
-      << (single_precision ? "float" : "double");
+      << (single_precision ? "float" : "double") << ", offset " << radius_offset << " dx";
     return s.str();
   }
 };
 
 struct Run {
   bool ok = false;
+  bool measured_now = false;  // run by this invocation, not reused from the run log
   std::string status = "ok";
   double wall_s = 0.0, cpu_s = 0.0;
   long long time_steps = 0;
@@ -68,6 +71,7 @@ scenes::ShearFlowParams bench_params(const ShearFlowSweep& sweep, const Setting&
   n.cells_per_radius = s.cells_per_radius;
   n.ibm_kernel = s.kernel;
   n.single_precision = s.single_precision;
+  n.hydrodynamic_radius_offset = s.radius_offset;
   n.steady_tolerance = sweep.steady_tolerance;
   n.steady_window_strain = sweep.steady_window_strain;
   n.max_strain = sweep.max_strain;
@@ -77,7 +81,8 @@ scenes::ShearFlowParams bench_params(const ShearFlowSweep& sweep, const Setting&
 
 // The run log: one tab-separated line per finished run, with the sweep
 // parameters every run shares, so that a resumed sweep reuses only runs of
-// the same Ca and stop rule.
+// the same Ca and stop rule. The radius offset is the last field (lines
+// written before it existed have none: those runs had no offset).
 std::string log_line(const ShearFlowSweep& sweep, const Setting& s, const Run& r) {
   std::ostringstream out;
   out.precision(17);
@@ -86,7 +91,7 @@ std::string log_line(const ShearFlowSweep& sweep, const Setting& s, const Run& r
       << '\t' << ibm::kernel_name(s.kernel) << '\t' << (s.single_precision ? 1 : 0) << '\t' << (r.ok ? 1 : 0)
       << '\t' << r.wall_s << '\t' << r.cpu_s << '\t' << r.time_steps << '\t' << r.taylor_deformation << '\t'
       << r.inclination_deg << '\t' << r.tank_treading_over_shear_rate << '\t' << r.final_strain << '\t'
-      << r.stop << '\t' << r.status << '\n';
+      << r.stop << '\t' << r.status << '\t' << s.radius_offset << '\n';
   return out.str();
 }
 
@@ -103,6 +108,7 @@ class Runner {
     std::fprintf(stderr, "run %s ... ", s.key().c_str());
     std::fflush(stderr);
     Run r;
+    r.measured_now = true;
     const std::clock_t cpu_start = std::clock();
     const scenes::ShearFlowResult result = scenes::run_shear_flow(bench_params(sweep_, s));
     r.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
@@ -143,7 +149,8 @@ class Runner {
         continue;
       StatusOr<ibm::Kernel> kernel = ibm::parse_kernel(f[7]);
       if (!kernel.ok()) continue;
-      const Setting s{number(5), static_cast<int>(number(6)), *kernel, f[8] == "1"};
+      const Setting s{number(5), static_cast<int>(number(6)), *kernel, f[8] == "1",
+                      f.size() > 19 ? number(19) : 0.0};
       Run r;
       r.ok = f[9] == "1";
       r.wall_s = number(10);
@@ -180,6 +187,9 @@ ShearFlowSweep shear_flow_sweep(bool coarse) {
   s.default_vertices = scenes::kFlowDefaultVertexCount;
   s.default_kernel = defaults.ibm_kernel;
   s.default_single_precision = defaults.single_precision;
+  s.default_radius_offset = scenes::radius_offset(defaults);
+  // The old default (no correction) for comparison; the last is the reference.
+  s.radius_offsets = {0.0, s.default_radius_offset};
   s.steady_tolerance = defaults.steady_tolerance;
   s.steady_window_strain = defaults.steady_window_strain;
   s.max_strain = defaults.max_strain;
@@ -202,7 +212,11 @@ ShearFlowSweep shear_flow_sweep(bool coarse) {
   return s;
 }
 
-Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& out_dir, bool coarse) {
+Status run_shear_flow_accuracy(const ShearFlowSweep& requested, const std::string& out_dir, bool coarse) {
+  ShearFlowSweep sweep = requested;
+  if (sweep.max_cells_per_radius > 0.0) {
+    std::erase_if(sweep.cells_per_radius, [&](double c) { return c > sweep.max_cells_per_radius; });
+  }
   if (sweep.cells_per_radius.size() < 3)
     return Status(StatusCode::kInvalidArgument, "the resolution sweep needs at least three lattices");
   if (sweep.vertex_counts.empty() || sweep.kernels.empty() || sweep.single_precision.empty())
@@ -211,14 +225,32 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
   std::filesystem::create_directories(out_dir);
   Runner runner(sweep, (std::filesystem::path(out_dir) / "shear_flow_runs.tsv").string());
   const Setting base{sweep.default_cells_per_radius, sweep.default_vertices, sweep.default_kernel,
-                     sweep.default_single_precision};
+                     sweep.default_single_precision, sweep.default_radius_offset};
   const double small_ca_d = scenes::small_ca_taylor_deformation(sweep.capillary_number);
 
   // Resolution sweep and its reference: Richardson in dx / R = 1 / cpr from
   // the three finest lattices.
   const std::vector<Setting> lattice_settings =
       vary(base, &Setting::cells_per_radius, sweep.cells_per_radius);
-  for (const Setting& s : lattice_settings) runner.run(s);
+  const std::vector<Setting> vertex_settings = vary(base, &Setting::vertices, sweep.vertex_counts);
+  std::vector<Setting> kernel_settings = vary(base, &Setting::kernel, sweep.kernels);
+  // Each kernel with its own calibrated offset (the scene's default for it).
+  for (Setting& s : kernel_settings) s.radius_offset = scenes::default_radius_offset(s.kernel);
+  const std::vector<Setting> precision_settings =
+      vary(base, &Setting::single_precision, sweep.single_precision);
+  const std::vector<Setting> offset_settings = vary(base, &Setting::radius_offset, sweep.radius_offsets);
+  {
+    // Cheapest first (the cost grows with the lattice), so that an
+    // interrupted sweep leaves the most runs in the log for --resume.
+    std::vector<Setting> all;
+    const std::vector<Setting>* lists[] = {&lattice_settings, &vertex_settings, &kernel_settings,
+                                           &precision_settings, &offset_settings};
+    for (const std::vector<Setting>* list : lists) all.insert(all.end(), list->begin(), list->end());
+    std::stable_sort(all.begin(), all.end(), [](const Setting& a, const Setting& b) {
+      return a.cells_per_radius < b.cells_per_radius;
+    });
+    for (const Setting& s : all) runner.run(s);
+  }
   const std::size_t nl = lattice_settings.size();
   const Run& d1 = runner.run(lattice_settings[nl - 1]);
   const Run& d2 = runner.run(lattice_settings[nl - 2]);
@@ -292,17 +324,23 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
     }
   };
   one_factor(
-      "vertices", vary(base, &Setting::vertices, sweep.vertex_counts),
-      [&](std::size_t i) { return std::to_string(sweep.vertex_counts[i]); },
+      "vertices", vertex_settings, [&](std::size_t i) { return std::to_string(sweep.vertex_counts[i]); },
       [&](std::size_t i) { return static_cast<double>(sweep.vertex_counts[i]); });
   one_factor(
-      "kernel", vary(base, &Setting::kernel, sweep.kernels),
+      "kernel", kernel_settings,
       [&](std::size_t i) { return std::string(ibm::kernel_name(sweep.kernels[i])); },
       [&](std::size_t i) { return ibm::kernel_width(sweep.kernels[i]); });
   one_factor(
-      "precision", vary(base, &Setting::single_precision, sweep.single_precision),
+      "precision", precision_settings,
       [&](std::size_t i) { return std::string(sweep.single_precision[i] ? "float" : "double"); },
       [&](std::size_t i) { return sweep.single_precision[i] ? 4.0 : 8.0; });
+  one_factor(
+      "hydrodynamic_radius_offset", offset_settings,
+      [&](std::size_t i) {
+        return number_text(sweep.radius_offsets[i], "%g") +
+               (sweep.radius_offsets[i] == 0.0 ? " (old default)" : "");
+      },
+      [&](std::size_t i) { return sweep.radius_offsets[i]; });
 
   const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   const Run& default_run = runner.run(base);
@@ -311,11 +349,17 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
   md << "# Shear flow: run time against the error of the steady Taylor deformation"
      << (coarse ? " (coarse CI size)" : "") << "\n\n";
   md << "Generated by `cellflow-bench accuracy shear_flow" << (coarse ? " --coarse" : "")
+     << (sweep.max_cells_per_radius > 0.0
+             ? " --max-cells-per-radius " + number_text(sweep.max_cells_per_radius, "%g")
+             : std::string())
+     << (sweep.cpu_time_axis ? " --cpu-time" : "")
      << "` (bench/accuracy). One cell (R = 6 um, E = 10 Pa, nu = 0.48, lambda = 1) in the default box "
      << "(10 x 15 x 5 R) at Ca = " << sweep.capillary_number
-     << ", run until D is steady (relative change below " << sweep.steady_tolerance << " over "
-     << sweep.steady_window_strain << " strain units, at most " << sweep.max_strain << "), " << sweep.threads
-     << " thread(s). One setting moves at a time around the default (" << base.key() << ").\n\n";
+     << ", run until D is steady (the means of D over two consecutive windows of "
+     << sweep.steady_window_strain << " strain units differ by less than " << sweep.steady_tolerance
+     << " and the slope over the last stays below 3 of that; at most " << sweep.max_strain
+     << " strain units), " << sweep.threads << " thread(s). One setting moves at a time around the default ("
+     << base.key() << ").\n\n";
   md << "- **steady D**: mean Taylor deformation over the last steady window.\n";
   md << "- **error**: |D / D_ref - 1| against the finest setting of the row's sweep.\n";
   md << "- **total error**: the same against the sweep's reference, for every row: " << reference_note
@@ -329,7 +373,8 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
      << number_text(100.0 * relative_error(default_run.taylor_deformation, reference_d), "%.1f")
      << " % from the reference, "
      << number_text(100.0 * relative_error(default_run.taylor_deformation, d1.taylor_deformation), "%.1f")
-     << " % from the finest lattice, in " << number_text(default_run.wall_s, "%.1f") << " s wall time.\n";
+     << " % from the finest lattice, in " << number_text(default_run.wall_s, "%.1f") << " s wall time ("
+     << number_text(default_run.cpu_s, "%.1f") << " s CPU).\n";
   double runs_wall_s = 0.0;
   for (const auto& [setting, r] : runner.runs()) runs_wall_s += r.wall_s;
   md << "- Whole sweep: " << number_text(runs_wall_s, "%.0f") << " s wall time over " << runner.runs().size()
@@ -338,9 +383,16 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
     md << " (" << runner.reused() << " of them recorded in shear_flow_runs.tsv by an earlier invocation and "
        << "reused with --resume; this one took " << number_text(total_s, "%.0f") << " s)";
   md << ".\n";
-  md << "- Plot: shear_flow.svg (total error against wall time; Pareto front boxed, default ringed).\n\n";
+  int measured_now = 0;
+  for (const auto& [setting, r] : runner.runs()) measured_now += r.measured_now ? 1 : 0;
+  md << "- Measured by this invocation: " << measured_now << " of the runs (column measured); the others "
+     << "come from shear_flow_runs.tsv (same Ca, stop rule and threads).\n";
+  md << "- Plot: shear_flow.svg (total error against "
+     << (sweep.cpu_time_axis ? "process CPU time" : "wall time")
+     << "; Pareto front boxed, default ringed).\n\n";
   md << "## Runs\n\n| run | steady D | D / (5/4 Ca) | inclination [deg] | minus (45 deg - 5/4 Ca rad) [deg] "
-        "| tank treading / gammadot | wall [s] |\n|---|---|---|---|---|---|---|\n";
+        "| tank treading / gammadot | wall [s] | CPU [s] | measured "
+        "|\n|---|---|---|---|---|---|---|---|---|\n";
   const double small_ca_theta = scenes::small_ca_inclination_deg_lambda1(sweep.capillary_number);
   for (const auto& [setting, r] : runner.runs()) {
     md << "| " << setting.key() << " | " << number_text(r.taylor_deformation, "%.5f") << " | "
@@ -348,7 +400,8 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
        << number_text(r.inclination_deg, "%.2f") << " | "
        << number_text(r.inclination_deg - small_ca_theta, "%+.2f") << " | "
        << number_text(r.tank_treading_over_shear_rate, "%.4f") << " | " << number_text(r.wall_s, "%.1f")
-       << " |\n";
+       << " | " << number_text(r.cpu_s, "%.1f") << " | "
+       << (r.measured_now ? "this invocation" : "run log (--resume)") << " |\n";
   }
   md << "\n## Sweeps";
 
@@ -360,6 +413,7 @@ Status run_shear_flow_accuracy(const ShearFlowSweep& sweep, const std::string& o
   labels.analytic_csv = "error_small_ca";
   labels.analytic_md = "error vs 5/4 Ca";
   labels.error_axis = "relative error of the steady D (total)";
+  labels.cpu_time_axis = sweep.cpu_time_axis;
 
   const std::string stem = (std::filesystem::path(out_dir) / "shear_flow").string();
   if (Status s = write_csv(stem + ".csv", rows, labels); !s.ok()) return s;

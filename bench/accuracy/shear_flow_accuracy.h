@@ -3,7 +3,8 @@
 // D = 5/4 Ca applies) run to a steady Taylor deformation with one setting at
 // a time moved away from the scene's default: lattice resolution (cells per
 // radius), mesh vertex count, immersed-boundary kernel, float or double
-// lattice storage. Each row carries three errors of the steady D:
+// lattice storage, the hydrodynamic radius offset (0: the old default). Each row carries three errors of the
+// steady D:
 //   error           against the finest setting of its own sweep;
 //   total error     against the scene's reference: Roscoe's small-Ca limit
 //                   5/4 Ca where it applies (Ca <= kSmallCaLimit), else the
@@ -36,12 +37,19 @@ struct ShearFlowSweep {
   int default_vertices = 3000;
   ibm::Kernel default_kernel = ibm::Kernel::kPeskin4;
   bool default_single_precision = true;
-  // The steady-state rule and its cap, the same for every run.
+  double default_radius_offset = 0.4;  // hydrodynamic_radius_offset of the default, lattice spacings
+  std::vector<double> radius_offsets;  // the last is the sweep's reference
+  // The steady-state rule and its cap, the same for every run (shear_flow_sweep
+  // takes the scene's defaults).
   double steady_tolerance = 2e-3;
-  double steady_window_strain = 2.0;
+  double steady_window_strain = 1.5;
   double max_strain = 40.0;
   int threads = 1;
   bool resume = false;  // reuse the runs of out_dir/shear_flow_runs.tsv
+  // Drop lattices finer than this (0: none) when a sweep must fit a CPU
+  // budget; at least three must remain.
+  double max_cells_per_radius = 0.0;
+  bool cpu_time_axis = false;  // plot against process CPU time (a loaded machine)
 };
 
 // Up to this Ca the small-Ca limit D = 5/4 Ca is the sweep's reference

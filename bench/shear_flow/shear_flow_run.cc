@@ -4,7 +4,7 @@
 //                  float=1 kernel=peskin4 max_strain=40 tol=2e-3 window=2
 //                  sample=0.1 nu=0.48 threads=0 every=1 ratio=2 offset=0.5
 //                  checkpoint=PATH checkpoint_every_s=300 resume=PATH rho=1000 resolve=1
-//                  lambda=1 marking_every=0
+//                  lambda=1 marking_every=0 boundaries=walls|lees_edwards
 // resolve=0 turns numerics.resolve_thickness off (the lattice of cpr, a
 // warning only); rho sets the fluid density (kg/m^3; the Reynolds number at
 // large Ca, where the physical one exceeds re).
@@ -55,6 +55,14 @@ int main(int argc, char** argv) {
       return 2;
     }
     n.ibm_kernel = *k;
+  }
+  if (args.count("boundaries")) {
+    StatusOr<scenes::ShearFlowBoundaries> b = scenes::parse_boundaries(args["boundaries"], "boundaries");
+    if (!b.ok()) {
+      std::fprintf(stderr, "%s\n", b.status().message().c_str());
+      return 2;
+    }
+    n.boundaries = *b;
   }
   n.max_strain = get("max_strain", n.max_strain);
   n.steady_tolerance = get("tol", n.steady_tolerance);

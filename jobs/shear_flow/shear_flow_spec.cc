@@ -76,6 +76,12 @@ Status convert_numerics(const v1::ShearFlowNumerics& in, scenes::ShearFlowNumeri
     n.hydrodynamic_radius_offset = in.hydrodynamic_radius_offset();
   }
   if (in.has_resolve_thickness()) n.resolve_thickness = in.resolve_thickness();
+  if (in.has_boundaries()) {
+    StatusOr<scenes::ShearFlowBoundaries> boundaries =
+        scenes::parse_boundaries(in.boundaries(), prefix + "numerics.boundaries");
+    if (!boundaries.ok()) return boundaries.status();
+    n.boundaries = *boundaries;
+  }
   if (in.volumetric_term() == v1::VOLUMETRIC_TERM_PER_TET) {
     n.volumetric = elastic::VolumetricTerm::kPerTet;
   } else if (in.volumetric_term() == v1::VOLUMETRIC_TERM_NODAL_AVERAGE) {

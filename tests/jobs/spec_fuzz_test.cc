@@ -310,6 +310,8 @@ void fill_flow_numerics(Gen& g, v1::ShearFlowNumerics* n) {
   if (g.set()) n->set_max_strain(g.real({40.0, 1.0, 0.5, 2.0, 1e4}));
   if (g.set()) n->set_max_stiffness_ratio(g.real({0.0, 2.5, 100.0}));
   if (g.chance(0.3)) n->set_volumetric_term(static_cast<v1::VolumetricTerm>(g.integer({0, 1, 2, 7})));
+  if (g.set())
+    n->set_boundaries(g.chance(0.8) ? std::string(g.chance(0.5) ? "walls" : "lees_edwards") : g.bytes(16));
 }
 
 // A suspension: 1 to 3 kinds (sometimes none, or more than the 64 allowed),

@@ -43,6 +43,7 @@ TEST(ShearFlowSpec, DefaultsOfUnsetFields) {
   EXPECT_EQ(p->numerics.single_precision, defaults.numerics.single_precision);
   EXPECT_DOUBLE_EQ(p->numerics.max_strain, defaults.numerics.max_strain);
   EXPECT_EQ(p->numerics.volumetric, elastic::VolumetricTerm::kPerTet);
+  EXPECT_EQ(p->numerics.boundaries, scenes::ShearFlowBoundaries::kWalls);
   EXPECT_DOUBLE_EQ(p->viscosity_ratio, 1.0);
 }
 
@@ -84,6 +85,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   n->set_max_stiffness_ratio(1.5);
   n->set_hydrodynamic_radius_offset(0.25);
   n->set_volumetric_term(v1::VOLUMETRIC_TERM_NODAL_AVERAGE);
+  n->set_boundaries("lees_edwards");
   const StatusOr<scenes::ShearFlowParams> p = to_params(spec);
   ASSERT_TRUE(p.ok()) << p.status().to_string();
   EXPECT_EQ(p->cell.target_vertex_count, 500);
@@ -116,6 +118,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   EXPECT_DOUBLE_EQ(m.max_stiffness_ratio, 1.5);
   EXPECT_DOUBLE_EQ(m.hydrodynamic_radius_offset, 0.25);
   EXPECT_EQ(m.volumetric, elastic::VolumetricTerm::kNodalAverage);
+  EXPECT_EQ(m.boundaries, scenes::ShearFlowBoundaries::kLeesEdwards);
 }
 
 TEST(ShearFlowSpec, ReadsTheProtobufJsonMapping) {
@@ -203,6 +206,8 @@ TEST(ShearFlowSpec, RefusalsNameTheField) {
       {"radius offset negative",
        [](v1::ShearFlowSpec& s) { s.mutable_numerics()->set_hydrodynamic_radius_offset(-0.5); },
        StatusCode::kInvalidArgument, "shear_flow.numerics.hydrodynamic_radius_offset"},
+      {"boundaries", [](v1::ShearFlowSpec& s) { s.mutable_numerics()->set_boundaries("lees-edwards"); },
+       StatusCode::kInvalidArgument, "shear_flow.numerics.boundaries"},
       {"radius offset large",
        [](v1::ShearFlowSpec& s) { s.mutable_numerics()->set_hydrodynamic_radius_offset(3.0); },
        StatusCode::kInvalidArgument, "shear_flow.numerics.hydrodynamic_radius_offset"},

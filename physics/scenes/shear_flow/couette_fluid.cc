@@ -15,9 +15,12 @@ StatusOr<lb::Fluid> make_couette_fluid(const ShearFlowSetup& setup, const units:
   fp.ny = setup.ny;
   fp.nz = setup.nz;
   fp.tau = n.relaxation_time;
-  fp.walls_y = true;
-  fp.lower_wall_velocity = {-u_wall_lb, 0.0, 0.0};
-  fp.upper_wall_velocity = {u_wall_lb, 0.0, 0.0};
+  // Lees-Edwards: periodic in y, the planes (lb::LeesEdwards) shift what crosses.
+  fp.walls_y = n.boundaries == ShearFlowBoundaries::kWalls;
+  if (fp.walls_y) {
+    fp.lower_wall_velocity = {-u_wall_lb, 0.0, 0.0};
+    fp.upper_wall_velocity = {u_wall_lb, 0.0, 0.0};
+  }
   fp.force_field = true;
   fp.velocity_field = true;
   fp.precision = n.single_precision ? lb::Precision::kFloat : lb::Precision::kDouble;

@@ -20,6 +20,7 @@
 #include "physics/elastic/elastic_body.h"
 #include "physics/elastic/material.h"
 #include "physics/lb/fluid.h"
+#include "physics/lb/lees_edwards.h"
 #include "physics/marking/marking.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_geometry.h"
@@ -177,8 +178,10 @@ void replay(Run& run, const ShearFlowResult& result) {
 }
 
 // resume_step > 0: the state after that step was restored from a checkpoint.
+// lees_edwards set: the y boundaries are Lees-Edwards planes, else walls.
 template <class T>
-void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t resume_step) {
+void time_loop(Run& run, lb::Fluid& fluid, lb::LeesEdwards* lees_edwards, ShearFlowResult& result,
+               std::int64_t resume_step) {
   using Clock = std::chrono::steady_clock;
   const ShearFlowNumerics& n = run.params->numerics;
   const ShearFlowCallbacks& cb = *run.callbacks;
@@ -200,7 +203,9 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t
   const ShearFlowStop limit_stop = schedule.limit_stop;
   const ShearFlowCheckpointing& ck = cb.checkpointing;
   const bool checkpoints = ck.due && !ck.write_path.empty();
-  // Walls: a vertex closer than half a kernel width loses force into the wall.
+  // Walls: a vertex closer than half a kernel width loses force into the
+  // wall. Lees-Edwards: its stencil would reach across the plane, where the
+  // lattice rows are shifted and moving (not handled: the run stops).
   const double wall_margin = 0.5 * width;
 
   auto fail = [&](std::int64_t step, const std::string& cause) {
@@ -263,7 +268,10 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t
     result.coupling_s += std::chrono::duration<double>(t2 - t1).count();
 
     // Collide and stream; the velocity field u(t) of this step is written.
-    lb::collide_stream(fluid);
+    if (lees_edwards != nullptr)
+      lees_edwards->collide_stream(fluid);
+    else
+      lb::collide_stream(fluid);
     const auto t3 = Clock::now();
     result.lattice_s += std::chrono::duration<double>(t3 - t2).count();
 
@@ -287,10 +295,18 @@ void time_loop(Run& run, lb::Fluid& fluid, ShearFlowResult& result, std::int64_t
         return;
       }
       if (moved.lo[1] < wall_margin || moved.hi[1] > fluid.ny() - wall_margin) {
-        fail(step, "the cell reached the wall region (extent in y " + number_text(moved.lo[1] * dx, 6) +
-                       " .. " + number_text(moved.hi[1] * dx, 6) + " m, walls at 0 and " +
-                       number_text(setup.box_m[1], 6) +
-                       " m); enlarge shear_flow.numerics.box_y_radii or lower the capillary number");
+        const std::string extent = "(extent in y " + number_text(moved.lo[1] * dx, 6) + " .. " +
+                                   number_text(moved.hi[1] * dx, 6) + " m, ";
+        if (lees_edwards != nullptr) {
+          fail(step, "the cell's kernel stencil reached the Lees-Edwards plane " + extent +
+                         "plane at 0 and " + number_text(setup.box_m[1], 6) +
+                         " m; stencils across it are not supported); enlarge "
+                         "shear_flow.numerics.box_y_radii or lower the capillary number");
+        } else {
+          fail(step, "the cell reached the wall region " + extent + "walls at 0 and " +
+                         number_text(setup.box_m[1], 6) +
+                         " m); enlarge shear_flow.numerics.box_y_radii or lower the capillary number");
+        }
         return;
       }
       if (moved.hi[0] - moved.lo[0] > fluid.nx() - width || moved.hi[2] - moved.lo[2] > fluid.nz() - width) {
@@ -447,11 +463,13 @@ ShearFlowResult run_attempt(const PlannedShearFlow& planned, const ShearFlowCall
   }
   if (callbacks.on_mesh) callbacks.on_mesh(run.mesh);
 
-  // The fluid: walls at y = 0 and H moving at -u_wall and +u_wall.
+  // The fluid: walls at y = 0 and H moving at -u_wall and +u_wall, or
+  // periodic in y with Lees-Edwards images sliding at +-2 u_wall.
   const ShearFlowSetup& setup = run.plan.setup;
   const double u_wall_lb = u.velocity_to_lattice(setup.wall_speed_m_per_s);
   // lambda != 1: phase 1 (the cell's inside) relaxes with tau_in.
   const bool contrast = params.viscosity_ratio != 1.0;
+  const bool lees_edwards = n.boundaries == ShearFlowBoundaries::kLeesEdwards;
   StatusOr<lb::Fluid> fluid =
       make_couette_fluid(setup, u, n, prefix,
                          contrast ? std::vector<double>{setup.inner_relaxation_time} : std::vector<double>{});
@@ -459,6 +477,20 @@ ShearFlowResult run_attempt(const PlannedShearFlow& planned, const ShearFlowCall
     result.status = fluid.status();
     return result;
   }
+  std::optional<lb::LeesEdwards> lees_edwards_planes;
+  if (lees_edwards) {
+    // U = gammadot H = 2 u_wall: the velocity of the image above.
+    StatusOr<lb::LeesEdwards> made = lb::LeesEdwards::make(*fluid, 2.0 * u_wall_lb);
+    if (!made.ok()) {
+      result.status =
+          Status(made.status().code(), prefix + "numerics.boundaries: " + made.status().message());
+      return result;
+    }
+    lees_edwards_planes.emplace(std::move(made).value());
+  }
+  lb::LeesEdwards* planes = lees_edwards_planes ? &*lees_edwards_planes : nullptr;
+  // The steady plane Couette profile; with Lees-Edwards planes the steady
+  // unbounded shear too.
   auto start_fluid = [&] { start_couette_profile(*fluid, u_wall_lb); };
   start_fluid();
 
@@ -518,9 +550,9 @@ ShearFlowResult run_attempt(const PlannedShearFlow& planned, const ShearFlowCall
   }
 
   if (n.single_precision) {
-    time_loop<float>(run, *fluid, result, resume_step);
+    time_loop<float>(run, *fluid, planes, result, resume_step);
   } else {
-    time_loop<double>(run, *fluid, result, resume_step);
+    time_loop<double>(run, *fluid, planes, result, resume_step);
   }
   refine_requested = run.refine_requested;
   if (!refine_requested) summarise(run, result);

@@ -4,7 +4,9 @@
 //
 // Setup. Box Lx x H x Lz (numerics.box_*_radii times the cell radius R),
 // periodic in x and z, walls at y = 0 and y = H moving at -u_wall and +u_wall
-// along x with u_wall = H gammadot / 2 (paper section 7.1). The cell starts as a
+// along x with u_wall = H gammadot / 2 (paper section 7.1), or with
+// numerics.boundaries = kLeesEdwards periodic in y with sliding images
+// (unbounded shear, no walls). The cell starts as a
 // stress-free sphere at the box centre. The fluid starts in the steady linear
 // Couette profile u_x(y) = gammadot (y - H/2), the analytic steady state of the
 // empty box, so the cell sees the full shear from step 0 (no start-up
@@ -69,6 +71,19 @@ inline cell::CellParams flow_cell_defaults() {
   return cell;
 }
 
+// The y boundaries of the box. kWalls: walls at y = 0 and H moving at
+// -u_wall and +u_wall (plane Couette, the paper's setup, section 7.1).
+// kLeesEdwards: no walls; the periodic images above and below move at
+// +-gammadot H along x (lb/lees_edwards.h), so the cell sees unbounded
+// simple shear and a smaller box_y_radii does for the same confinement. The
+// kernel stencils of the cell must not reach the Lees-Edwards plane (the
+// cell starts at the box centre): a run whose cell comes within half a
+// kernel width of y = 0 or H stops with an error naming box_y_radii.
+enum class ShearFlowBoundaries { kWalls, kLeesEdwards };
+std::string_view boundaries_name(ShearFlowBoundaries boundaries);
+// "walls" or "lees_edwards"; kInvalidArgument naming `field` otherwise.
+StatusOr<ShearFlowBoundaries> parse_boundaries(std::string_view name, std::string_view field);
+
 // Numerical options of the flow scene: each trades time for accuracy or
 // guards a stability limit. Field names follow proto ShearFlowNumerics.
 struct ShearFlowNumerics {
@@ -79,7 +94,7 @@ struct ShearFlowNumerics {
   // +8 % (12 cells, 2793 s) above (5/4) Ca (docs/accuracy/shear_flow.md).
   double cells_per_radius = 6.0;
   double box_x_radii = 10.0;     // box length along the flow / R (periodic)
-  double box_y_radii = 15.0;     // wall distance H / R
+  double box_y_radii = 15.0;     // wall distance H / R (Lees-Edwards: the box height)
   double box_z_radii = 5.0;      // box depth along the vorticity / R (periodic)
   double relaxation_time = 1.0;  // LB tau in (0.5, 3]; nu_lb = (tau - 1/2) / 3
   double max_mach = 0.1;         // refuse u_wall / c_s above this, in (0, 0.3]
@@ -143,6 +158,7 @@ struct ShearFlowNumerics {
   // ShearFlowCallbacks::on_restart). false: the lattice of cells_per_radius,
   // and only a warning.
   bool resolve_thickness = true;
+  ShearFlowBoundaries boundaries = ShearFlowBoundaries::kWalls;
   int threads = 0;  // OpenMP threads; 0 = OpenMP default
   // Viscosity contrast (viscosity_ratio != 1): the fast marking runs every
   // this many steps; 0 (default): the largest divisor of the sample interval
@@ -239,6 +255,15 @@ struct ShearFlowSetup {
   // Non-empty: the resolving lattice was refused (memory, work, Mach) and
   // the run uses numerics.cells_per_radius; the reason (a result warning).
   std::string resolution_note;
+  double lattice_spacing_m = 0.0;   // dx
+  double time_step_s = 0.0;         // dt
+  int nx = 0, ny = 0, nz = 0;       // lattice nodes
+  double box_m[3] = {0, 0, 0};      // nx dx, ny dx (= H), nz dx
+  double wall_speed_m_per_s = 0.0;  // u_wall = H gammadot / 2 (Lees-Edwards: the speed at y = 0 and H)
+  double mach_number = 0.0;         // u_wall / c_s
+  double shear_rate_lattice = 0.0;  // gammadot dt
+  double steps_per_strain = 0.0;    // 1 / (gammadot dt)
+  std::size_t lattice_bytes = 0;
 };
 
 // validate + units + Mach + memory checks, no allocation: what a server

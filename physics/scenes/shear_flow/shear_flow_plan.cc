@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "physics/lb/fluid.h"
@@ -289,11 +290,17 @@ Violations violations(const ShearFlowParams& params) {
     }
   };
   const double min_periodic = cpr_ok ? min_box_periodic_radii(n) : 2.0;
-  const double min_wall = cpr_ok ? min_box_wall_radii(n) : 2.0;
+  // A Lees-Edwards plane needs no spacing beyond the kernel's reach: the
+  // stencil must only not cross it.
+  const double min_wall = !cpr_ok                                             ? 2.0
+                          : n.boundaries == ShearFlowBoundaries::kLeesEdwards ? min_box_periodic_radii(n)
+                                                                              : min_box_wall_radii(n);
   check_box("box_x_radii", n.box_x_radii, min_periodic,
             "the cell diameter 2 plus one kernel width between the cell and its periodic image");
   check_box("box_y_radii", n.box_y_radii, min_wall,
-            "the cell diameter 2 plus half a kernel width and one spacing at each wall");
+            n.boundaries == ShearFlowBoundaries::kLeesEdwards
+                ? "the cell diameter 2 plus half a kernel width on each side of the Lees-Edwards plane"
+                : "the cell diameter 2 plus half a kernel width and one spacing at each wall");
   check_box("box_z_radii", n.box_z_radii, min_periodic,
             "the cell diameter 2 plus one kernel width between the cell and its periodic image");
   if (!(n.relaxation_time > 0.5 && n.relaxation_time <= 3.0)) {
@@ -384,6 +391,8 @@ Violations violations(const ShearFlowParams& params) {
     v.add("numerics.max_stiffness_ratio",
           "= " + number_text(n.max_stiffness_ratio, 6) + " must lie in [0, 100] (0: default)");
   }
+  if (n.boundaries != ShearFlowBoundaries::kWalls && n.boundaries != ShearFlowBoundaries::kLeesEdwards)
+    v.add("numerics.boundaries", "must be walls or lees_edwards");
   if (n.threads < 0) v.add("numerics.threads", "= " + std::to_string(n.threads) + " must be >= 0");
   if (n.marking_every_steps < 0 || n.marking_every_steps > 1000000) {
     v.add("numerics.marking_every_steps",
@@ -428,6 +437,24 @@ StatusOr<PlannedShearFlow> plan_shear_flow_run(const ShearFlowParams& params, st
 
 void PlannedShearFlow::set_threads(int threads) {
   params_.numerics.threads = std::clamp(threads, 0, 1024);
+}
+
+std::string_view boundaries_name(ShearFlowBoundaries boundaries) {
+  switch (boundaries) {
+    case ShearFlowBoundaries::kWalls:
+      return "walls";
+    case ShearFlowBoundaries::kLeesEdwards:
+      return "lees_edwards";
+  }
+  return "unknown";
+}
+
+StatusOr<ShearFlowBoundaries> parse_boundaries(std::string_view name, std::string_view field) {
+  if (name == "walls") return ShearFlowBoundaries::kWalls;
+  if (name == "lees_edwards") return ShearFlowBoundaries::kLeesEdwards;
+  // The name is hostile input: quote at most 64 characters of it.
+  return invalid_argument(std::string(field) + " = \"" + std::string(name.substr(0, 64)) +
+                          "\" must be \"walls\" or \"lees_edwards\"");
 }
 
 double default_radius_offset(ibm::Kernel kernel) {

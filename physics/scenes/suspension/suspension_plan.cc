@@ -106,6 +106,9 @@ Violations violations(const SuspensionParams& params) {
       v.add(nested.field, nested.problem);
     }
   }
+  // The suspension's time loop has walls only (no Lees-Edwards planes).
+  if (params.numerics.flow.boundaries != ShearFlowBoundaries::kWalls)
+    v.add("numerics.flow.boundaries", "must be walls in a suspension (lees_edwards: single-cell flow only)");
   for (std::size_t k = 0; k < params.kinds.size(); ++k) {
     const SuspendedCellKind& kind = params.kinds[k];
     const std::string name = "kinds[" + std::to_string(k) + "].";

@@ -304,6 +304,32 @@ StatusOr<CurveInterpolant> CurveLibrary::fixed_w_interpolant(const CurveKey& key
   return out;
 }
 
+Status CurveLibrary::insert(const std::string& key_text, LibraryCurve curve) {
+  std::map<std::string, std::string> fields = key_fields(key_text);
+  if (key_text.rfind("cellflow-calibration-curve;", 0) != 0 || fields["code"] != options_.code_version ||
+      fields["reference_radius_m"] != number_text(options_.reference_radius_m) ||
+      fields["reference_modulus_pa"] != number_text(options_.reference_modulus_pa)) {
+    return invalid_argument("library curve: its key is not of this code version and reference cell");
+  }
+  if (fields["mooney_rivlin_w"] != number_text(curve.mooney_rivlin_w)) {
+    return invalid_argument("library curve: w = " + number_text(curve.mooney_rivlin_w) +
+                            " is not the w of its key");
+  }
+  if (curve.deformation.empty() || curve.deformation.size() != curve.force_scaled.size()) {
+    return invalid_argument("library curve: no points, or deformations and forces of different lengths");
+  }
+  for (std::size_t i = 0; i < curve.deformation.size(); ++i) {
+    const double e = curve.deformation[i];
+    if (!std::isfinite(e) || !(e > 0.0) || !std::isfinite(curve.force_scaled[i]) ||
+        (i > 0 && !(e > curve.deformation[i - 1]))) {
+      return invalid_argument("library curve: point " + std::to_string(i) +
+                              ": expected increasing deformation > 0 and a finite force");
+    }
+  }
+  curves_.emplace(key_text, std::move(curve));
+  return Status::ok_status();
+}
+
 Status CurveLibrary::save(const std::string& directory) const {
   namespace fs = std::filesystem;
   std::error_code ec;

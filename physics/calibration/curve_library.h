@@ -146,9 +146,18 @@ class CurveLibrary {
   StatusOr<CurveInterpolant> fixed_w_interpolant(const CurveKey& key, double w,
                                                  double needed_max_deformation);
 
+  // Adds a curve computed elsewhere (the server's library, built by child
+  // jobs) under its key text. Refused (INVALID_ARGUMENT, nothing added) unless
+  // the key carries this library's code version and reference cell, names
+  // the curve's w, and the curve has increasing eps > 0 and finite forces; a
+  // curve already held is kept.
+  Status insert(const std::string& key_text, LibraryCurve curve);
+
   // Simulations run by this library since it was made (loaded curves not counted).
   int simulations_run() const { return simulations_run_; }
   std::size_t size() const { return curves_.size(); }
+  // Every curve held, by key text.
+  const std::map<std::string, LibraryCurve>& curves() const { return curves_; }
 
   // Writes every curve to directory (created if missing), one file each,
   // written under a temporary name and renamed. Reads every *.csv file of the

@@ -189,5 +189,52 @@ TEST(CurveLibrary, InterpolationErrorAgainstDirectSimulations) {
               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
+// Curves inserted without a simulation (as the server's library hands them
+// to a fit): analytic f = eps^1.5 (1 + a(w) eps + b(w) eps^2) on a shared
+// grid of load points; one shorter curve (ended early) at the low end.
+CurveLibrary analytic_library(CurveKey* key, bool short_low_curve) {
+  CurveLibrary library;
+  key->numerics.target_vertex_count = 300;
+  key->numerics.load_points = 12;
+  for (const double w : library.options().w_grid) {
+    LibraryCurve c;
+    c.mooney_rivlin_w = w;
+    const int points = short_low_curve && w < 0.1 ? 8 : 12;
+    for (int i = 1; i <= points; ++i) {
+      const double eps = 0.75 * i / 12.0;
+      c.deformation.push_back(eps);
+      c.force_scaled.push_back(std::pow(eps, 1.5) * (1.0 + (1.5 - w) * eps + (0.5 + w * w) * eps * eps));
+    }
+    if (points < 12) c.failure = "ended early";
+    EXPECT_TRUE(library.insert(curve_key_text(*key, w, library.options()), std::move(c)).ok());
+  }
+  return library;
+}
+
+TEST(CurveLibrary, InsertedCurvesAreCheckedAndNeedNoSimulation) {
+  CurveKey key;
+  CurveLibrary library = analytic_library(&key, false);
+  EXPECT_EQ(library.simulations_run(), 0);
+  // Refused: another code version, a w that is not the key's, a decreasing eps.
+  LibraryCurve bad;
+  bad.mooney_rivlin_w = 0.5;
+  bad.deformation = {0.1, 0.2};
+  bad.force_scaled = {0.01, 0.02};
+  LibraryOptions other;
+  other.code_version = "older";
+  EXPECT_FALSE(library.insert(curve_key_text(key, 0.5, other), bad).ok());
+  EXPECT_FALSE(library.insert(curve_key_text(key, 0.25, library.options()), bad).ok());
+  bad.deformation = {0.2, 0.1};
+  EXPECT_FALSE(library.insert(curve_key_text(key, 0.5, library.options()), bad).ok());
+
+  for (const bool short_low : {false, true}) {
+    CurveKey k;
+    CurveLibrary lib = analytic_library(&k, short_low);
+    StatusOr<CurveInterpolant> grid = lib.grid_interpolant(k, short_low ? 0.5 : 0.75);
+    ASSERT_TRUE(grid.ok()) << grid.status().to_string();
+    EXPECT_EQ(lib.simulations_run(), 0) << "every grid curve was inserted";
+  }
+}
+
 }  // namespace
 }  // namespace cellflow::calibration

@@ -453,7 +453,8 @@ StatusOr<std::vector<Store::LibraryChild>> JobService::library_children(const v1
     // of their ranges) is left to the fit, which simulates it itself.
     auto prepared = prepare_submitted(c.spec);
     if (!prepared.ok()) continue;
-    out.push_back({std::move(c.key), std::move(c.spec), (*prepared)->memory_bytes()});
+    out.push_back({std::move(c.key), std::move(c.base), c.mooney_rivlin_w, c.needed_deformation,
+                   std::move(c.spec), (*prepared)->memory_bytes()});
   }
   return out;
 }
@@ -687,7 +688,7 @@ void JobService::attach_library(const v1::Job& job, v1::FitSpec& fit) {
   }
   v1::FitServerLibrary* out = fit.mutable_server_library();
   for (v1::FitLibraryCurve& c : library->curves) *out->add_curves() = std::move(c);
-  out->set_child_simulations(job.child_count());
+  out->set_child_simulations(library->children_run);
 }
 
 StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& request,

@@ -96,7 +96,8 @@ CREATE TABLE checkpoints (
     // names the library curves it reads (library_needs) and is leased only
     // when no job building one of them is queued or running; a library child
     // (library_key = its curve's key text) leaves its curve in library_curves
-    // when it ends. Curves outlive the jobs that made them.
+    // when it ends. Curves outlive the jobs that made them. A need names the
+    // key without w (base), its w and the deepest deformation the fit asks of it.
     R"sql(
 ALTER TABLE jobs ADD COLUMN library_fit INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE jobs ADD COLUMN library_key TEXT;
@@ -104,14 +105,22 @@ CREATE INDEX jobs_by_library_key ON jobs (library_key, state) WHERE library_key 
 CREATE TABLE library_needs (
   fit_id INTEGER NOT NULL REFERENCES jobs (id),
   key TEXT NOT NULL,
+  base TEXT NOT NULL,
+  w REAL NOT NULL,
+  needed REAL NOT NULL,
   PRIMARY KEY (fit_id, key)
 ) WITHOUT ROWID;
+CREATE INDEX library_needs_by_key ON library_needs (key);
 CREATE TABLE library_curves (
   key TEXT PRIMARY KEY,
+  base TEXT NOT NULL,
+  w REAL NOT NULL,
+  end_deformation REAL NOT NULL,
   curve BLOB NOT NULL,
   job_id INTEGER NOT NULL,
   create_ms INTEGER NOT NULL
 );
+CREATE INDEX library_curves_by_base ON library_curves (base, w);
 )sql",
 };
 
@@ -712,20 +721,29 @@ StatusOr<Store::Submitted> Store::submit_fit(const v1::JobSpec& fit, std::int64_
   }
   // Under the write lock, so that of two fits submitted together only the
   // first queues a curve and the second waits for that child.
-  Stmt need(writer_, "INSERT OR IGNORE INTO library_needs (fit_id, key) VALUES (?, ?)");
+  Stmt need(writer_,
+            "INSERT OR IGNORE INTO library_needs (fit_id, key, base, w, needed) VALUES (?, ?, ?, ?, ?)");
+  // Not queued: a curve held or being built, or one the fit will not read
+  // (a stored curve of larger w ends before the deformation the fit needs:
+  // it searches w only above that one).
   Stmt known(writer_,
              "SELECT EXISTS (SELECT 1 FROM library_curves WHERE key = ?1) OR EXISTS (SELECT 1 FROM jobs "
-             "WHERE library_key = ?1 AND state IN (1, 2))");
+             "WHERE library_key = ?1 AND state IN (1, 2)) OR EXISTS (SELECT 1 FROM library_curves WHERE "
+             "base = ?2 AND w > ?3 AND end_deformation < ?4 * (1 - 1e-12))");
   Stmt child(writer_,
              "INSERT INTO jobs (spec, state, memory_bytes, create_ms, owner, parent_id, child_index, "
              "library_key) VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING id");
   int queued = 0;
   for (const LibraryChild& c : needs) {
     need.reset();
-    need.bind(1, fit_id).bind(2, c.key);
+    need.bind(1, fit_id)
+        .bind(2, c.key)
+        .bind(3, c.base)
+        .bind(4, c.mooney_rivlin_w)
+        .bind(5, c.needed_deformation);
     if (need.step() != SQLITE_DONE) return sqlite_error(writer_, "library need");
     known.reset();
-    known.bind(1, c.key);
+    known.bind(1, c.key).bind(2, c.base).bind(3, c.mooney_rivlin_w).bind(4, c.needed_deformation);
     if (known.step() != SQLITE_ROW) return sqlite_error(writer_, "library lookup");
     const bool have = known.int64(0) != 0;
     known.reset();
@@ -785,6 +803,9 @@ StatusOr<Store::FitLibrary> Store::library_curves_for(std::int64_t fit_id, std::
     out.curves.push_back(std::move(curve));
   }
   if (rc != SQLITE_DONE) return sqlite_error(r.get(), "library curves");
+  Stmt ran(r.get(), "SELECT COUNT(*) FROM jobs WHERE parent_id = ? AND state IN (3, 4)");
+  ran.bind(1, fit_id);
+  if (ran.step() == SQLITE_ROW) out.children_run = static_cast<int>(ran.int64(0));
   return out;
 }
 
@@ -1037,6 +1058,56 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
 
 namespace {
 
+// A library curve that ended early (at end_deformation) tells every fit
+// whose curves of that key must reach further that it searches w only above
+// this one (curves of smaller w end earlier still: strain hardening weakens
+// as w falls; jobs/fit/fit_job.cc cuts its grid there): the queued and
+// running jobs building that key's curves of smaller w that only such fits
+// need are cancelled (with their ChildUpdate), in the caller's transaction.
+// A worker running one learns it at its next heartbeat.
+Status cancel_unneeded_curves(sqlite3* db, const std::string& key, double end_deformation,
+                              std::int64_t now_ms) {
+  std::string base;
+  double w = 0.0;
+  {
+    Stmt find(db, "SELECT base, w FROM library_needs WHERE key = ? LIMIT 1");
+    find.bind(1, key);
+    if (find.step() != SQLITE_ROW) return {};
+    base = find.text(0);
+    w = find.real(1);
+  }
+  struct Useless {
+    std::int64_t id;
+    int attempt;
+    std::string worker_id;
+    double w;
+  };
+  std::vector<Useless> useless;
+  {
+    // Every need of such a job's key: same base, smaller w, and a fit that needs more than this curve
+    // reaches.
+    Stmt find(db,
+              "SELECT c.id, c.attempt, c.worker_id, MIN(n.w) FROM jobs c JOIN library_needs n ON n.key = "
+              "c.library_key WHERE c.state IN (1, 2) AND n.base = ?1 AND n.w < ?2 GROUP BY c.id "
+              "HAVING MIN(n.needed) > ?3");
+    find.bind(1, base).bind(2, w).bind(3, end_deformation);
+    while (find.step() == SQLITE_ROW) {
+      useless.push_back({find.int64(0), static_cast<int>(find.int64(1)), find.text(2), find.real(3)});
+    }
+  }
+  char reason[240];
+  std::snprintf(reason, sizeof reason,
+                "not needed: the curve at w = %g ends at deformation %.4g, below what the fits need; they "
+                "search w only above it",
+                w, end_deformation);
+  for (const Useless& u : useless) {
+    auto seq = cancel_row(db, u.id, u.attempt, u.worker_id, reason, now_ms);
+    if (!seq.ok()) return seq.status();
+    if (Status s = roll_up_study(db, u.id, now_ms); !s.ok()) return s;
+  }
+  return {};
+}
+
 // A library child that ended (inside the caller's write transaction): its
 // force samples become the curve of its library_key, unless a curve of that
 // key is stored already or the samples fail the checks (a hostile or broken
@@ -1067,9 +1138,22 @@ Status store_library_curve(sqlite3* db, std::int64_t job_id, const std::string& 
   }
   auto curve = jobs::library_curve_from_samples(key, spec, std::move(samples), failure);
   if (!curve.ok()) return {};
-  Stmt insert(db, "INSERT OR IGNORE INTO library_curves (key, curve, job_id, create_ms) VALUES (?, ?, ?, ?)");
-  insert.bind(1, key).bind_blob(2, curve->SerializeAsString()).bind(3, job_id).bind(4, now_ms);
+  std::string base;
+  {
+    Stmt find(db, "SELECT base FROM library_needs WHERE key = ? LIMIT 1");
+    find.bind(1, key);
+    if (find.step() != SQLITE_ROW) return {};  // no fit needs it any more (deleted)
+    base = find.text(0);
+  }
+  const double end = curve->deformation(curve->deformation_size() - 1);
+  Stmt insert(
+      db,
+      "INSERT OR IGNORE INTO library_curves (key, base, w, end_deformation, curve, job_id, create_ms) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?)");
+  insert.bind(1, key).bind(2, base).bind(3, curve->mooney_rivlin_w()).bind(4, end);
+  insert.bind_blob(5, curve->SerializeAsString()).bind(6, job_id).bind(7, now_ms);
   if (insert.step() != SQLITE_DONE) return sqlite_error(db, "insert library curve");
+  if (!failure.empty()) return cancel_unneeded_curves(db, key, end, now_ms);
   return {};
 }
 

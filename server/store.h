@@ -137,11 +137,20 @@ class Store {
   // per curve key it reads, and one child job (parent_id = the fit,
   // library_key = the curve's key) per needed curve that the library table
   // lacks and no queued or running job is building already (of any fit or
-  // owner: a curve is built once). child_count is the children queued here.
+  // owner: a curve is built once) and that the fit will read (not below a
+  // stored curve of larger w that ends before the deformation the fit
+  // needs). child_count is the children queued here.
   // The fit is leased only when no job building a curve it needs is queued
   // or running; its children's roll-up never ends it.
+  // A library child that fails part-way, its curve ending before the
+  // deformation the fits reading that key need, cancels the queued and
+  // running jobs of the key's smaller w that only such fits need (they
+  // search w above it: jobs/fit/fit_job.cc).
   struct LibraryChild {
-    std::string key;  // curve_key_text (jobs/fit/fit_library.h)
+    std::string key;   // curve_key_text (jobs/fit/fit_library.h)
+    std::string base;  // the key without w
+    double mooney_rivlin_w = 1.0;
+    double needed_deformation = 0.0;  // the deepest deformation the fit asks of the key's curves
     v1::JobSpec spec;
     std::int64_t memory_bytes = 0;
   };
@@ -154,6 +163,7 @@ class Store {
   struct FitLibrary {
     std::vector<v1::FitLibraryCurve> curves;
     int refused = 0;
+    int children_run = 0;  // the fit's children that ran to their end (not cancelled)
   };
   StatusOr<FitLibrary> library_curves_for(std::int64_t fit_id, std::int64_t max_bytes);
   std::int64_t count_library_curves();

@@ -58,7 +58,9 @@ StatusOr<std::vector<FitLibraryChild>> fit_library_children(const FitPlan& plan,
     for (auto w = ws.rbegin(); w != ws.rend(); ++w) {
       FitLibraryChild child;
       child.key = cal::curve_key_text(k.key, *w, options);
+      child.base = k.text;
       child.mooney_rivlin_w = *w;
+      child.needed_deformation = k.needed_max_deformation;
       // The run CurveLibrary::curve makes: the reference cell, the key's numerics.
       v1::CellSpec cell;
       cell.set_radius_m(options.reference_radius_m);

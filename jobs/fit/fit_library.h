@@ -43,7 +43,9 @@ std::vector<double> fit_library_w(const FitPlan& plan, const calibration::Librar
 // E = reference_modulus_pa, R = reference_radius_m).
 struct FitLibraryChild {
   std::string key;
+  std::string base;  // the key text without w (FitLibraryKey::text)
   double mooney_rivlin_w = 1.0;
+  double needed_deformation = 0.0;  // FitLibraryKey::needed_max_deformation
   v1::JobSpec spec;
 };
 

@@ -30,16 +30,20 @@ v1::JobSpec fit_spec(const std::string& name) {
   return spec;
 }
 
-// Library children of keys "k<i>" (the server's key texts in real use).
-std::vector<Store::LibraryChild> needs(int n, int first = 0) {
+// Library children of keys "k<i>" at w = 1 - 0.25 i (the server's key texts
+// in real use, from w = 1 down), of one base key; the fit needs deformation `needed`.
+std::vector<Store::LibraryChild> needs(int n, int first = 0, double needed = 0.5) {
   std::vector<Store::LibraryChild> out;
   for (int i = first; i < first + n; ++i) {
     Store::LibraryChild c;
     c.key = "k" + std::to_string(i);
+    c.base = "b";
+    c.mooney_rivlin_w = 1.0 - 0.25 * i;
+    c.needed_deformation = needed;
     v1::CompressionSpec* s = c.spec.mutable_compression();
     s->mutable_cell()->set_radius_m(kRadius);
     s->mutable_cell()->mutable_material()->set_youngs_modulus_pa(kModulus);
-    s->mutable_cell()->mutable_material()->set_mooney_rivlin_w(0.25 * i);
+    s->mutable_cell()->mutable_material()->set_mooney_rivlin_w(1.0 - 0.25 * i);
     s->set_max_deformation(0.6);
     s->set_load_points(kLoadPoints);
     c.memory_bytes = 100;
@@ -65,8 +69,8 @@ class FitLibraryStoreTest : public ::testing::Test {
     fs::remove_all(dir_);
   }
 
-  v1::Job submit_fit(const std::string& name, int n, int first = 0) {
-    auto submitted = store_->submit_fit(fit_spec(name), 500, needs(n, first), "", 1000, "alice");
+  v1::Job submit_fit(const std::string& name, int n, int first = 0, double needed = 0.5) {
+    auto submitted = store_->submit_fit(fit_spec(name), 500, needs(n, first, needed), "", 1000, "alice");
     EXPECT_TRUE(submitted.ok()) << submitted.status().to_string();
     return submitted.ok() ? submitted->job : v1::Job{};
   }
@@ -75,10 +79,11 @@ class FitLibraryStoreTest : public ::testing::Test {
     EXPECT_TRUE(c.ok());
     return c.ok() ? *c : std::nullopt;
   }
-  // Reports the child's load points (force = f E R^2 with f = eps^1.5 + `shift`) and finishes it.
-  void run_child(const Claim& c, double shift = 0.0, int gap_at = -1) {
+  // Reports the child's load points (force = f E R^2 with f = eps^1.5 + `shift`) and finishes it;
+  // fails it after `points` points when points < kLoadPoints.
+  void run_child(const Claim& c, double shift = 0.0, int gap_at = -1, int points = kLoadPoints) {
     const std::int64_t id = *parse_job_name(c.job.id());
-    for (int i = 0; i < kLoadPoints; ++i) {
+    for (int i = 0; i < points; ++i) {
       v1::JobEvent e;
       v1::ForceSample* s = e.mutable_force_sample();
       s->set_index(i == gap_at ? i + 1 : i);
@@ -88,7 +93,8 @@ class FitLibraryStoreTest : public ::testing::Test {
       auto out = store_->append_event(id, c.lease_token, e, s->index(), 2100, kTtl);
       ASSERT_TRUE(out.ok()) << out.status().to_string();
     }
-    auto done = store_->finish(id, c.lease_token, 10, 2200);
+    auto done = points < kLoadPoints ? store_->fail(id, c.lease_token, "element crushed", -1, 2200)
+                                     : store_->finish(id, c.lease_token, 10, 2200);
     ASSERT_TRUE(done.ok()) << done.status().to_string();
   }
 
@@ -140,7 +146,7 @@ TEST_F(FitLibraryStoreTest, MissingCurvesBecomeChildrenAndASecondFitReusesThem) 
     EXPECT_EQ(library->refused, 0);
     const v1::FitLibraryCurve& curve = library->curves[1];
     EXPECT_EQ(curve.key(), "k1");
-    EXPECT_EQ(curve.mooney_rivlin_w(), 0.25);
+    EXPECT_EQ(curve.mooney_rivlin_w(), 0.75);
     ASSERT_EQ(curve.deformation_size(), kLoadPoints);
     EXPECT_NEAR(curve.force_scaled(2), std::pow(0.45, 1.5), 1e-12) << "F / (E R^2)";
     EXPECT_TRUE(curve.failure().empty());
@@ -189,6 +195,45 @@ TEST_F(FitLibraryStoreTest, HostileSamplesStoreNoCurveAndTheNextFitQueuesItAgain
   ASSERT_TRUE(back.ok());
   EXPECT_EQ(back->curves.size(), 2u);
   EXPECT_EQ(back->refused, 1) << "the corrupted curve";
+}
+
+TEST_F(FitLibraryStoreTest, ACurveEndingEarlyCancelsTheSmallerWOnlyDeeperFitsNeed) {
+  const v1::Job fit = submit_fit("a", 3, 0, /*needed=*/0.5);  // w = 1, 0.75, 0.5
+  const Claim w1 = *claim(), w075 = *claim();
+  // w = 0.75 fails after two points (eps 0.3 < 0.5): the fit searches w above it, w = 0.5 is useless.
+  run_child(w075, 0.0, -1, /*points=*/2);
+  auto library = store_->library_curves_for(*parse_job_name(fit.id()), 1 << 20);
+  ASSERT_TRUE(library.ok());
+  ASSERT_EQ(library->curves.size(), 1u);
+  EXPECT_EQ(library->curves[0].failure(), "element crushed") << "the partial curve keeps its failure";
+  EXPECT_EQ(library->curves[0].deformation_size(), 2);
+  auto kids = store_->list(0, 100, v1::Job::STATE_UNSPECIFIED, nullptr, *parse_job_name(fit.id()));
+  ASSERT_TRUE(kids.ok());
+  ASSERT_EQ(kids->size(), 3u);
+  EXPECT_EQ((*kids)[2].state(), v1::Job::CANCELLED);
+  EXPECT_NE((*kids)[2].reason().find("not needed"), std::string::npos) << (*kids)[2].reason();
+  EXPECT_EQ((*kids)[0].state(), v1::Job::RUNNING) << "a larger w is still needed";
+  run_child(w1);
+  auto leased = claim();
+  ASSERT_TRUE(leased.has_value());
+  EXPECT_EQ(leased->job.id(), fit.id());
+
+  // A fit that needs only eps 0.2 of the key reads the smaller w (k3 w 0.25, k4 0, k5 -0.25: test
+  // keys); one that needs 0.5 queues none of them (below w = 0.75, which ends at 0.3) and they are
+  // not cancelled when k3 ends at 0.3 too: the shallow fit may still use them.
+  const v1::Job shallow = submit_fit("shallow", 3, 3, 0.2);
+  EXPECT_EQ(shallow.child_count(), 3);
+  EXPECT_EQ(submit_fit("deep", 3, 3, 0.5).child_count(), 0);
+  run_child(*claim(), 0.0, -1, /*points=*/2);
+  auto rest = store_->list(0, 100, v1::Job::STATE_UNSPECIFIED, nullptr, *parse_job_name(shallow.id()));
+  ASSERT_TRUE(rest.ok());
+  ASSERT_EQ(rest->size(), 3u);
+  EXPECT_EQ((*rest)[1].state(), v1::Job::QUEUED) << "the shallow fit may still use it";
+  EXPECT_EQ((*rest)[2].state(), v1::Job::QUEUED);
+
+  // Later fits: w = 0.5 lies below the stored curve of w = 0.75 that ends at 0.3.
+  EXPECT_EQ(submit_fit("again", 3, 0, 0.5).child_count(), 0) << "a fit needing 0.5 never reads w = 0.5";
+  EXPECT_EQ(submit_fit("shallow first", 3, 0, 0.2).child_count(), 1) << "one needing 0.2 does";
 }
 
 TEST_F(FitLibraryStoreTest, CancelAndDeleteOfAFitCascadeToItsChildren) {

@@ -14,6 +14,8 @@
 #include <system_error>
 #include <vector>
 
+#include "jobs/fit/fit_library.h"
+#include "jobs/fit/fit_spec.h"
 #include "jobs/registry.h"
 #include "jobs/study/study.h"
 #include "server/encoding.h"
@@ -241,6 +243,9 @@ StatusOr<std::unique_ptr<jobs::PreparedJob>> JobService::prepare_submitted(const
     return invalid_argument("author: " + std::to_string(spec.author().size()) + " bytes; at most " +
                             std::to_string(options_.max_name_bytes));
   }
+  if (spec.has_fit() && spec.fit().has_server_library()) {
+    return invalid_argument("fit.server_library: set by the server when it leases the fit; not accepted");
+  }
   v1::JobSpec resolved = spec;
   // Every cell of the scene (a suspension has one per kind).
   for (const jobs::SceneCell& scene_cell : jobs::scene_cells(resolved)) {
@@ -399,7 +404,16 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
   // The result names an author: the client's, else the submitting user.
   v1::JobSpec spec = request.spec();
   if (spec.author().empty()) spec.set_author(caller.user);
-  auto submitted = store_.submit(spec, request.request_id(), memory, now(), caller.user);
+  // A fit that reads library curves: the curves the server lacks become its child jobs.
+  std::vector<Store::LibraryChild> library;
+  if (spec.has_fit()) {
+    auto needs = library_children(spec);
+    if (!needs.ok()) return needs.status();
+    library = std::move(*needs);
+  }
+  auto submitted = spec.has_fit() && !library.empty()
+                       ? store_.submit_fit(spec, memory, library, request.request_id(), now(), caller.user)
+                       : store_.submit(spec, request.request_id(), memory, now(), caller.user);
   if (!submitted.ok()) return submitted.status();
   if (!submitted->existed) {
     if (auto id = parse_job_name(submitted->job.id())) {
@@ -408,6 +422,10 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
     }
     published(submitted->job);
     notifier_.queue_changed();
+    if (submitted->job.child_count() > 0) {
+      spdlog::info("{}: {} of its {} library curves queued as child jobs", submitted->job.id(),
+                   submitted->job.child_count(), library.size());
+    }
     spdlog::info("{} queued{}{}", submitted->job.id(),
                  request.spec().name().empty() ? "" : " \"" + sanitize_text(request.spec().name(), 80) + "\"",
                  request.request_id().empty() ? "" : " (request " + request.request_id() + ")");
@@ -416,6 +434,30 @@ StatusOr<v1::SubmitJobResponse> JobService::submit(const v1::SubmitJobRequest& r
   *response.mutable_job() = std::move(submitted->job);
   response.set_already_existed(submitted->existed);
   return response;
+}
+
+StatusOr<std::vector<Store::LibraryChild>> JobService::library_children(const v1::JobSpec& spec) {
+  std::vector<Store::LibraryChild> out;
+  auto plan = jobs::to_fit_plan(spec.fit());
+  if (!plan.ok()) return plan.status();
+  auto children = jobs::fit_library_children(*plan, sanitize_text(spec.name(), 200));
+  if (!children.ok()) return children.status();
+  if (children->size() > static_cast<std::size_t>(options_.max_fit_library_children)) {
+    return Status(StatusCode::kResourceExhausted,
+                  "fit: " + std::to_string(children->size()) +
+                      " library curves (distinct probe-to-cell radius ratios x the w grid); at most " +
+                      std::to_string(options_.max_fit_library_children) +
+                      " per fit: fit cells of similar radius together or fix w");
+  }
+  for (jobs::FitLibraryChild& c : *children) {
+    // Checked like any submitted job; one the scenes refuse (a key at the edge
+    // of their ranges) is left to the fit, which simulates it itself.
+    auto prepared = prepare_submitted(c.spec);
+    if (!prepared.ok()) continue;
+    out.push_back({std::move(c.key), std::move(c.base), c.mooney_rivlin_w, c.needed_deformation,
+                   std::move(c.spec), (*prepared)->memory_bytes()});
+  }
+  return out;
 }
 
 StatusOr<v1::SubmitJobResponse> JobService::submit_study(const v1::SubmitJobRequest& request,
@@ -546,6 +588,7 @@ StatusOr<v1::Job> JobService::cancel(const std::string& job_id, const Identity& 
     }
     remove_uploads(*id);
     published(*job);
+    notifier_.queue_changed();  // a fit waiting for this job may be leasable now
     spdlog::info("{} cancelled{}", job->id(),
                  children.empty() ? "" : " with " + std::to_string(children.size()) + " children");
   }
@@ -629,6 +672,26 @@ Status JobService::download(const std::string& job_id,
   return {};
 }
 
+void JobService::attach_library(const v1::Job& job, v1::FitSpec& fit) {
+  auto id = parse_job_name(job.id());
+  if (!id) return;
+  // Under the 4 MiB message limit with the fit's own data (at most 3.2 MB of
+  // samples): what does not fit, the fit simulates.
+  const std::int64_t room = std::max<std::int64_t>(
+      0, (std::int64_t{4} << 20) - static_cast<std::int64_t>(fit.ByteSizeLong()) - (std::int64_t{64} << 10));
+  auto library = store_.library_curves_for(*id, room);
+  if (!library.ok()) {
+    spdlog::warn("{}: library curves not read: {}", job.id(), library.status().to_string());
+    return;
+  }
+  if (library->refused > 0) {
+    spdlog::warn("{}: {} stored library curves refused (checks or size)", job.id(), library->refused);
+  }
+  v1::FitServerLibrary* out = fit.mutable_server_library();
+  for (v1::FitLibraryCurve& c : library->curves) *out->add_curves() = std::move(c);
+  out->set_child_simulations(library->children_run);
+}
+
 StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& request,
                                                  const std::function<bool()>& client_gone) {
   if (request.worker_id().empty()) return invalid_argument("worker_id: must not be empty");
@@ -673,6 +736,7 @@ StatusOr<v1::LeaseJobResponse> JobService::lease(const v1::LeaseJobRequest& requ
         response.mutable_lease()->set_lease_token(c.lease_token);
         response.mutable_lease()->set_attempt(c.job.attempt());
         *response.mutable_spec() = c.job.spec();
+        if (response.spec().has_fit()) attach_library(c.job, *response.mutable_spec()->mutable_fit());
         response.set_last_delivered_sample_index(c.last_delivered_sample_index);
         if (auto id = parse_job_name(c.job.id())) describe_checkpoint(*id, response);
         return response;
@@ -864,6 +928,7 @@ StatusOr<v1::FinishJobResponse> JobService::finish(const v1::FinishJobRequest& r
   });
   if (!job.ok()) return job.status();
   published(*job);
+  if (!job->parent_job_id().empty()) notifier_.queue_changed();  // its fit may be leasable now
   spdlog::info("{} succeeded (attempt {}, result {} bytes)", job->id(), job->attempt(), size);
   v1::FinishJobResponse response;
   response.set_state(job->state());
@@ -887,6 +952,7 @@ StatusOr<v1::FinishJobResponse> JobService::fail(const v1::FailJobRequest& reque
   });
   if (!job.ok()) return job.status();
   published(*job);
+  if (!job->parent_job_id().empty()) notifier_.queue_changed();  // its fit may be leasable now
   spdlog::warn("{} failed: {}", job->id(), reason);
   v1::FinishJobResponse response;
   response.set_state(job->state());

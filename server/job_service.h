@@ -49,6 +49,8 @@ struct JobServiceOptions {
   // limit (upload_memory_factor x the job's memory estimate + upload_slack_bytes;
   // a flow checkpoint holds the lattice populations, below the estimate).
   std::int64_t max_checkpoint_bytes = 0;
+  // Library simulations one fit may need (its keys x the w grid); more is RESOURCE_EXHAUSTED.
+  int max_fit_library_children = 2000;
 };
 
 // Valid UTF-8 of at most max_bytes: invalid sequences become U+FFFD, the end
@@ -156,6 +158,11 @@ class JobService {
   // SubmitJob of a study: expands it, validates and memory-checks every
   // child, then queues the study and its children in one transaction.
   StatusOr<v1::SubmitJobResponse> submit_study(const v1::SubmitJobRequest& request, const Identity& caller);
+  // A fit's library curves as child-job candidates (jobs/fit/fit_library.h),
+  // each prepared like a submitted job (its memory estimate); none for Hertz.
+  StatusOr<std::vector<Store::LibraryChild>> library_children(const v1::JobSpec& spec);
+  // The stored curves of a leased fit's keys into its spec (FitSpec.server_library).
+  void attach_library(const v1::Job& job, v1::FitSpec& fit);
   std::int64_t ttl_ms() const { return static_cast<std::int64_t>(options_.lease_ttl_s * 1000.0); }
   std::filesystem::path upload_path(const v1::Lease& lease, v1::ResultPart part = v1::RESULT_PART_HDF5) const;
   // Moves the attempt's upload (if any) into place as the job's result.

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <random>
 
+#include "jobs/fit/library_curve.h"
+
 namespace cellflow::server {
 
 namespace {
@@ -89,6 +91,36 @@ CREATE TABLE checkpoints (
   size_bytes INTEGER NOT NULL,
   time_ms INTEGER NOT NULL
 );
+)sql",
+    // 5: the curve library of fits (issue 14). A fit row (library_fit = 1)
+    // names the library curves it reads (library_needs) and is leased only
+    // when no job building one of them is queued or running; a library child
+    // (library_key = its curve's key text) leaves its curve in library_curves
+    // when it ends. Curves outlive the jobs that made them. A need names the
+    // key without w (base), its w and the deepest deformation the fit asks of it.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN library_fit INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN library_key TEXT;
+CREATE INDEX jobs_by_library_key ON jobs (library_key, state) WHERE library_key IS NOT NULL;
+CREATE TABLE library_needs (
+  fit_id INTEGER NOT NULL REFERENCES jobs (id),
+  key TEXT NOT NULL,
+  base TEXT NOT NULL,
+  w REAL NOT NULL,
+  needed REAL NOT NULL,
+  PRIMARY KEY (fit_id, key)
+) WITHOUT ROWID;
+CREATE INDEX library_needs_by_key ON library_needs (key);
+CREATE TABLE library_curves (
+  key TEXT PRIMARY KEY,
+  base TEXT NOT NULL,
+  w REAL NOT NULL,
+  end_deformation REAL NOT NULL,
+  curve BLOB NOT NULL,
+  job_id INTEGER NOT NULL,
+  create_ms INTEGER NOT NULL
+);
+CREATE INDEX library_curves_by_base ON library_curves (base, w);
 )sql",
 };
 
@@ -336,18 +368,30 @@ Status roll_up_study(sqlite3* db, std::int64_t child_id, std::int64_t now_ms, bo
   v1::Job::State study_state = v1::Job::STATE_UNSPECIFIED;
   int count = 0;
   int done = 0;
+  bool library_fit = false;
   {
     Stmt study(
         db,
-        "SELECT state, child_count, (SELECT COUNT(*) FROM jobs c WHERE c.parent_id = ?1 AND c.state >= 3) "
-        "FROM jobs WHERE id = ?1");
+        "SELECT state, child_count, (SELECT COUNT(*) FROM jobs c WHERE c.parent_id = ?1 AND c.state >= 3), "
+        "library_fit FROM jobs WHERE id = ?1");
     study.bind(1, parent_id);
     if (study.step() != SQLITE_ROW) return sqlite_error(db, "study");
     study_state = static_cast<v1::Job::State>(study.int64(0));
     count = static_cast<int>(study.int64(1));
     done = static_cast<int>(study.int64(2));
+    library_fit = study.int64(3) != 0;
   }
   if (is_terminal(study_state)) return {};
+  if (library_fit) {
+    // A fit is an ordinary job once leased (claim); while it waits, its
+    // fraction is that of its library simulations done.
+    if (study_state == v1::Job::QUEUED && is_terminal(update.state())) {
+      Stmt progress(db, "UPDATE jobs SET fraction_done = ? WHERE id = ?");
+      progress.bind(1, count > 0 ? static_cast<double>(done) / count : 1.0).bind(2, parent_id);
+      if (progress.step() != SQLITE_DONE) return sqlite_error(db, "fit progress");
+    }
+    return {};
+  }
   if (study_state == v1::Job::QUEUED && update.state() != v1::Job::QUEUED) {
     Stmt start(db, "UPDATE jobs SET state = ?, start_ms = COALESCE(start_ms, ?), reason = '' WHERE id = ?");
     start.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms).bind(3, parent_id);
@@ -649,6 +693,131 @@ StatusOr<Store::Submitted> Store::submit_study(const v1::JobSpec& study,
   return Submitted{std::move(*job), false};
 }
 
+StatusOr<Store::Submitted> Store::submit_fit(const v1::JobSpec& fit, std::int64_t memory_bytes,
+                                             const std::vector<LibraryChild>& needs,
+                                             const std::string& request_id, std::int64_t now_ms,
+                                             const std::string& owner) {
+  std::lock_guard lock(write_mutex_);
+  WriteTransaction txn(writer_);
+  if (!txn.status().ok()) return txn.status();
+  if (auto earlier = job_of_request(writer_, owner, request_id); !earlier.ok()) {
+    return earlier.status();
+  } else if (earlier->has_value()) {
+    return Submitted{std::move(**earlier), true};
+  }
+  std::int64_t fit_id = 0;
+  {
+    Stmt insert(writer_,
+                "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner, library_fit) "
+                "VALUES (?, ?, ?, ?, ?, ?, 1) RETURNING id");
+    if (request_id.empty()) {
+      insert.bind_null(1);
+    } else {
+      insert.bind(1, scoped_request_id(owner, request_id));
+    }
+    insert.bind_blob(2, fit.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
+    insert.bind(4, memory_bytes).bind(5, now_ms).bind(6, owner);
+    if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert fit");
+    fit_id = insert.int64(0);
+    insert.step();
+  }
+  // Under the write lock, so that of two fits submitted together only the
+  // first queues a curve and the second waits for that child.
+  Stmt need(writer_,
+            "INSERT OR IGNORE INTO library_needs (fit_id, key, base, w, needed) VALUES (?, ?, ?, ?, ?)");
+  // Not queued: a curve held or being built, or one the fit will not read
+  // (a stored curve of larger w ends before the deformation the fit needs:
+  // it searches w only above that one).
+  Stmt known(writer_,
+             "SELECT EXISTS (SELECT 1 FROM library_curves WHERE key = ?1) OR EXISTS (SELECT 1 FROM jobs "
+             "WHERE library_key = ?1 AND state IN (1, 2)) OR EXISTS (SELECT 1 FROM library_curves WHERE "
+             "base = ?2 AND w > ?3 AND end_deformation < ?4 * (1 - 1e-12))");
+  Stmt child(writer_,
+             "INSERT INTO jobs (spec, state, memory_bytes, create_ms, owner, parent_id, child_index, "
+             "library_key) VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING id");
+  int queued = 0;
+  for (const LibraryChild& c : needs) {
+    need.reset();
+    need.bind(1, fit_id)
+        .bind(2, c.key)
+        .bind(3, c.base)
+        .bind(4, c.mooney_rivlin_w)
+        .bind(5, c.needed_deformation);
+    if (need.step() != SQLITE_DONE) return sqlite_error(writer_, "library need");
+    known.reset();
+    known.bind(1, c.key).bind(2, c.base).bind(3, c.mooney_rivlin_w).bind(4, c.needed_deformation);
+    if (known.step() != SQLITE_ROW) return sqlite_error(writer_, "library lookup");
+    const bool have = known.int64(0) != 0;
+    known.reset();
+    if (have) continue;
+    child.reset();
+    child.bind_blob(1, c.spec.SerializeAsString()).bind(2, static_cast<int>(v1::Job::QUEUED));
+    child.bind(3, c.memory_bytes).bind(4, now_ms).bind(5, owner).bind(6, fit_id).bind(7, queued);
+    child.bind(8, c.key);
+    if (child.step() != SQLITE_ROW) return sqlite_error(writer_, "insert library child");
+    const std::int64_t child_id = child.int64(0);
+    child.step();
+    child.reset();
+    auto seq = append_event_row(
+        writer_, child_id, 0,
+        state_event(v1::Job::QUEUED, "submitted (library simulation of fit " + job_name(fit_id) + ")", ""),
+        std::nullopt, now_ms);
+    if (!seq.ok()) return seq.status();
+    ++queued;
+  }
+  {
+    Stmt count(writer_, "UPDATE jobs SET child_count = ? WHERE id = ?");
+    count.bind(1, queued).bind(2, fit_id);
+    if (count.step() != SQLITE_DONE) return sqlite_error(writer_, "fit children");
+  }
+  const std::string reason =
+      queued > 0 ? "submitted (" + std::to_string(queued) + " library simulations queued as child jobs)"
+                 : "submitted";
+  auto seq =
+      append_event_row(writer_, fit_id, 0, state_event(v1::Job::QUEUED, reason, ""), std::nullopt, now_ms);
+  if (!seq.ok()) return seq.status();
+  auto job = load_job(writer_, fit_id);
+  if (!job.ok()) return job.status();
+  if (Status s = txn.commit(); !s.ok()) return s;
+  return Submitted{std::move(*job), false};
+}
+
+StatusOr<Store::FitLibrary> Store::library_curves_for(std::int64_t fit_id, std::int64_t max_bytes) {
+  Reader r = reader();
+  if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
+  FitLibrary out;
+  Stmt stmt(r.get(),
+            "SELECT l.key, l.curve FROM library_needs n JOIN library_curves l ON l.key = n.key "
+            "WHERE n.fit_id = ? ORDER BY l.key");
+  stmt.bind(1, fit_id);
+  std::int64_t bytes = 0;
+  int rc;
+  while ((rc = stmt.step()) == SQLITE_ROW) {
+    const std::string blob = stmt.blob(1);
+    v1::FitLibraryCurve curve;
+    // Checked again as read back: the table is only as good as what was written to it.
+    if (bytes + static_cast<std::int64_t>(blob.size()) > max_bytes || !curve.ParseFromString(blob) ||
+        curve.key() != stmt.text(0) || !jobs::check_library_curve(curve).ok()) {
+      ++out.refused;
+      continue;
+    }
+    bytes += static_cast<std::int64_t>(blob.size());
+    out.curves.push_back(std::move(curve));
+  }
+  if (rc != SQLITE_DONE) return sqlite_error(r.get(), "library curves");
+  Stmt ran(r.get(), "SELECT COUNT(*) FROM jobs WHERE parent_id = ? AND state IN (3, 4)");
+  ran.bind(1, fit_id);
+  if (ran.step() == SQLITE_ROW) out.children_run = static_cast<int>(ran.int64(0));
+  return out;
+}
+
+std::int64_t Store::count_library_curves() {
+  Reader r = reader();
+  if (!r.get()) return -1;
+  Stmt stmt(r.get(), "SELECT COUNT(*) FROM library_curves");
+  return stmt.step() == SQLITE_ROW ? stmt.int64(0) : -1;
+}
+
 StatusOr<std::int64_t> Store::last_sequence(std::int64_t job_id) {
   Reader r = reader();
   if (!r.get()) return Status(StatusCode::kInternal, "sqlite: no reader connection");
@@ -688,7 +857,7 @@ StatusOr<std::vector<v1::Job>> Store::list(std::int64_t after_id, int limit, v1:
 std::int64_t Store::count(v1::Job::State state) {
   Reader r = reader();
   if (!r.get()) return -1;
-  Stmt stmt(r.get(), "SELECT COUNT(*) FROM jobs WHERE state = ? AND child_count = 0");
+  Stmt stmt(r.get(), "SELECT COUNT(*) FROM jobs WHERE state = ? AND (child_count = 0 OR library_fit = 1)");
   stmt.bind(1, static_cast<int>(state));
   return stmt.step() == SQLITE_ROW ? stmt.int64(0) : -1;
 }
@@ -782,7 +951,11 @@ StatusOr<std::optional<Claim>> Store::claim(const std::string& worker_id, std::i
       writer_,
       "UPDATE jobs SET state = ?1, attempt = attempt + 1, lease_token = ?2, lease_expires_ms = ?3, "
       "worker_id = ?4, start_ms = COALESCE(start_ms, ?5), reason = '', fraction_done = 0, remaining_s = -1 "
-      "WHERE id = (SELECT id FROM jobs WHERE state = ?6 AND child_count = 0 ORDER BY id LIMIT 1) "
+      "WHERE id = (SELECT id FROM jobs j WHERE state = ?6 AND (child_count = 0 OR library_fit = 1) "
+      // a fit waits until no job building one of its library curves is queued or running
+      "AND NOT EXISTS (SELECT 1 FROM library_needs n JOIN jobs c ON c.library_key = n.key AND c.state IN (1, "
+      "2) "
+      "WHERE n.fit_id = j.id) ORDER BY id LIMIT 1) "
       "RETURNING id, attempt");
   update.bind(1, static_cast<int>(v1::Job::RUNNING))
       .bind(2, std::string(token))
@@ -887,6 +1060,105 @@ StatusOr<ReportOutcome> Store::append_event(std::int64_t job_id, const std::stri
 
 namespace {
 
+// A library curve that ended early (at end_deformation) tells every fit
+// whose curves of that key must reach further that it searches w only above
+// this one (curves of smaller w end earlier still: strain hardening weakens
+// as w falls; jobs/fit/fit_job.cc cuts its grid there): the queued and
+// running jobs building that key's curves of smaller w that only such fits
+// need are cancelled (with their ChildUpdate), in the caller's transaction.
+// A worker running one learns it at its next heartbeat.
+Status cancel_unneeded_curves(sqlite3* db, const std::string& key, double end_deformation,
+                              std::int64_t now_ms) {
+  std::string base;
+  double w = 0.0;
+  {
+    Stmt find(db, "SELECT base, w FROM library_needs WHERE key = ? LIMIT 1");
+    find.bind(1, key);
+    if (find.step() != SQLITE_ROW) return {};
+    base = find.text(0);
+    w = find.real(1);
+  }
+  struct Useless {
+    std::int64_t id;
+    int attempt;
+    std::string worker_id;
+    double w;
+  };
+  std::vector<Useless> useless;
+  {
+    // Every need of such a job's key: same base, smaller w, and a fit that needs more than this curve
+    // reaches.
+    Stmt find(db,
+              "SELECT c.id, c.attempt, c.worker_id, MIN(n.w) FROM jobs c JOIN library_needs n ON n.key = "
+              "c.library_key WHERE c.state IN (1, 2) AND n.base = ?1 AND n.w < ?2 GROUP BY c.id "
+              "HAVING MIN(n.needed) > ?3");
+    find.bind(1, base).bind(2, w).bind(3, end_deformation);
+    while (find.step() == SQLITE_ROW) {
+      useless.push_back({find.int64(0), static_cast<int>(find.int64(1)), find.text(2), find.real(3)});
+    }
+  }
+  char reason[240];
+  std::snprintf(reason, sizeof reason,
+                "not needed: the curve at w = %g ends at deformation %.4g, below what the fits need; they "
+                "search w only above it",
+                w, end_deformation);
+  for (const Useless& u : useless) {
+    auto seq = cancel_row(db, u.id, u.attempt, u.worker_id, reason, now_ms);
+    if (!seq.ok()) return seq.status();
+    if (Status s = roll_up_study(db, u.id, now_ms); !s.ok()) return s;
+  }
+  return {};
+}
+
+// A library child that ended (inside the caller's write transaction): its
+// force samples become the curve of its library_key, unless a curve of that
+// key is stored already or the samples fail the checks (a hostile or broken
+// worker: nothing stored, the fit simulates the curve itself).
+Status store_library_curve(sqlite3* db, std::int64_t job_id, const std::string& failure,
+                           std::int64_t now_ms) {
+  std::string key;
+  v1::JobSpec spec;
+  {
+    Stmt row(db, "SELECT library_key, spec FROM jobs WHERE id = ?");
+    row.bind(1, job_id);
+    if (row.step() != SQLITE_ROW) return sqlite_error(db, "library child");
+    if (row.is_null(0)) return {};
+    key = row.text(0);
+    if (!spec.ParseFromString(row.blob(1))) return {};
+  }
+  std::vector<v1::ForceSample> samples;
+  {
+    Stmt events(db,
+                "SELECT payload FROM events WHERE job_id = ? AND kind = 'force_sample' ORDER BY sample_index "
+                "LIMIT ?");
+    events.bind(1, job_id).bind(2, jobs::kMaxLibraryCurvePoints + 1);
+    while (events.step() == SQLITE_ROW) {
+      v1::JobEvent event;
+      if (!event.ParseFromString(events.blob(0)) || !event.has_force_sample()) return {};
+      samples.push_back(event.force_sample());
+    }
+  }
+  auto curve = jobs::library_curve_from_samples(key, spec, std::move(samples), failure);
+  if (!curve.ok()) return {};
+  std::string base;
+  {
+    Stmt find(db, "SELECT base FROM library_needs WHERE key = ? LIMIT 1");
+    find.bind(1, key);
+    if (find.step() != SQLITE_ROW) return {};  // no fit needs it any more (deleted)
+    base = find.text(0);
+  }
+  const double end = curve->deformation(curve->deformation_size() - 1);
+  Stmt insert(
+      db,
+      "INSERT OR IGNORE INTO library_curves (key, base, w, end_deformation, curve, job_id, create_ms) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?)");
+  insert.bind(1, key).bind(2, base).bind(3, curve->mooney_rivlin_w()).bind(4, end);
+  insert.bind_blob(5, curve->SerializeAsString()).bind(6, job_id).bind(7, now_ms);
+  if (insert.step() != SQLITE_DONE) return sqlite_error(db, "insert library curve");
+  if (!failure.empty()) return cancel_unneeded_curves(db, key, end, now_ms);
+  return {};
+}
+
 // The fenced terminal transition shared by finish, fail and release.
 StatusOr<v1::Job> end_attempt(sqlite3* db, std::int64_t job_id, const std::string& lease_token,
                               v1::Job::State state, const std::string& reason, std::int64_t result_size_bytes,
@@ -917,6 +1189,12 @@ StatusOr<v1::Job> end_attempt(sqlite3* db, std::int64_t job_id, const std::strin
   update.step();
   if (before_commit) {
     if (Status s = before_commit(); !s.ok()) return s;
+  }
+  if (state == v1::Job::SUCCEEDED || state == v1::Job::FAILED) {
+    // In this transaction: a fit leased after the commit finds the curve.
+    if (Status s = store_library_curve(db, job_id, state == v1::Job::FAILED ? reason : "", now_ms); !s.ok()) {
+      return s;
+    }
   }
   auto seq =
       append_event_row(db, job_id, attempt, state_event(state, reason, worker_id), std::nullopt, now_ms);
@@ -968,7 +1246,7 @@ StatusOr<std::vector<v1::Job>> Store::requeue_expired(std::int64_t now_ms, std::
     // The attempt's start: the time of its RUNNING event (events of the attempt, kind "state").
     Stmt find(writer_,
               "SELECT id, attempt, released, worker_id, lease_expires_ms >= ?2 FROM jobs j WHERE state = ?1 "
-              "AND child_count = 0 "
+              "AND (child_count = 0 OR library_fit = 1) "
               "AND (lease_expires_ms < ?2 OR (?3 > 0 AND (SELECT MIN(time_ms) FROM events e WHERE "
               "e.job_id = j.id AND e.attempt = j.attempt AND e.kind = 'state') < ?2 - ?3))");
     find.bind(1, static_cast<int>(v1::Job::RUNNING)).bind(2, now_ms).bind(3, max_run_ms);
@@ -1016,7 +1294,7 @@ Status Store::extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_
   std::lock_guard lock(write_mutex_);
   Stmt update(writer_,
               "UPDATE jobs SET lease_expires_ms = MAX(COALESCE(lease_expires_ms, 0), ?) WHERE state = ? "
-              "AND child_count = 0");
+              "AND (child_count = 0 OR library_fit = 1)");
   update.bind(1, now_ms + lease_ttl_ms).bind(2, static_cast<int>(v1::Job::RUNNING));
   if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "extend leases");
   return {};
@@ -1024,7 +1302,9 @@ Status Store::extend_running_leases(std::int64_t now_ms, std::int64_t lease_ttl_
 
 Status Store::forgive_running_attempts() {
   std::lock_guard lock(write_mutex_);
-  Stmt update(writer_, "UPDATE jobs SET released = released + 1 WHERE state = ? AND child_count = 0");
+  Stmt update(
+      writer_,
+      "UPDATE jobs SET released = released + 1 WHERE state = ? AND (child_count = 0 OR library_fit = 1)");
   update.bind(1, static_cast<int>(v1::Job::RUNNING));
   if (update.step() != SQLITE_DONE) return sqlite_error(writer_, "forgive attempts");
   return {};
@@ -1057,8 +1337,9 @@ Status Store::delete_job(std::int64_t job_id, std::vector<std::int64_t>* deleted
   for (const char* sql :
        {"DELETE FROM events WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
         "DELETE FROM checkpoints WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
-        "DELETE FROM jobs WHERE parent_id = ?1", "DELETE FROM events WHERE job_id = ?1",
-        "DELETE FROM checkpoints WHERE job_id = ?1", "DELETE FROM jobs WHERE id = ?1"}) {
+        "DELETE FROM jobs WHERE parent_id = ?1", "DELETE FROM library_needs WHERE fit_id = ?1",
+        "DELETE FROM events WHERE job_id = ?1", "DELETE FROM checkpoints WHERE job_id = ?1",
+        "DELETE FROM jobs WHERE id = ?1"}) {
     Stmt remove(writer_, sql);
     remove.bind(1, job_id);
     if (remove.step() != SQLITE_DONE) return sqlite_error(writer_, "delete job");
@@ -1072,7 +1353,8 @@ StatusOr<std::vector<v1::Job>> Store::release_all_running(const std::string& rea
   std::vector<std::pair<std::int64_t, std::string>> running;
   {
     Reader r = reader();
-    Stmt find(r.get(), "SELECT id, lease_token FROM jobs WHERE state = ? AND child_count = 0");
+    Stmt find(r.get(),
+              "SELECT id, lease_token FROM jobs WHERE state = ? AND (child_count = 0 OR library_fit = 1)");
     find.bind(1, static_cast<int>(v1::Job::RUNNING));
     while (find.step() == SQLITE_ROW) running.emplace_back(find.int64(0), find.text(1));
   }

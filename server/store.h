@@ -25,6 +25,12 @@
 // study and rolls the study's state up in the same transaction (store.cc,
 // roll_up_study); a study is never claimed, expired or released.
 //
+// Library (version 5): fits and their library simulations (submit_fit). A
+// library child that ends leaves its curve in library_curves (built from its
+// force samples and checked, in the transaction that ends it); a fit is
+// leased once no job building a curve it needs is queued or running, and
+// gets the stored curves with its lease (library_curves_for).
+//
 // No gRPC here: the store is tested directly (tests/service/store_test.cc).
 // Time comes in as a parameter (milliseconds since the epoch) so tests can
 // drive lease expiry without waiting.
@@ -92,7 +98,7 @@ struct ReportOutcome {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 4;
+  static constexpr int kSchemaVersion = 5;
 
   static StatusOr<std::unique_ptr<Store>> open(const StoreOptions& options);
   ~Store();
@@ -125,6 +131,42 @@ class Store {
   StatusOr<Submitted> submit_study(const v1::JobSpec& study, const std::vector<StudyChild>& children,
                                    const std::string& request_id, std::int64_t now_ms,
                                    const std::string& owner = "");
+
+  // Queues a fit that reads library curves (schema 5) in one transaction: the
+  // fit row (library_fit = 1, with its QUEUED event), one library_needs row
+  // per curve key it reads, and one child job (parent_id = the fit,
+  // library_key = the curve's key) per needed curve that the library table
+  // lacks and no queued or running job is building already (of any fit or
+  // owner: a curve is built once) and that the fit will read (not below a
+  // stored curve of larger w that ends before the deformation the fit
+  // needs). child_count is the children queued here.
+  // The fit is leased only when no job building a curve it needs is queued
+  // or running; its children's roll-up never ends it.
+  // A library child that fails part-way, its curve ending before the
+  // deformation the fits reading that key need, cancels the queued and
+  // running jobs of the key's smaller w that only such fits need (they
+  // search w above it: jobs/fit/fit_job.cc).
+  struct LibraryChild {
+    std::string key;   // curve_key_text (jobs/fit/fit_library.h)
+    std::string base;  // the key without w
+    double mooney_rivlin_w = 1.0;
+    double needed_deformation = 0.0;  // the deepest deformation the fit asks of the key's curves
+    v1::JobSpec spec;
+    std::int64_t memory_bytes = 0;
+  };
+  StatusOr<Submitted> submit_fit(const v1::JobSpec& fit, std::int64_t memory_bytes,
+                                 const std::vector<LibraryChild>& needs, const std::string& request_id,
+                                 std::int64_t now_ms, const std::string& owner = "");
+  // The stored curves of the keys a fit needs, each checked again
+  // (jobs::check_library_curve) and at most max_bytes in all; the rest are
+  // counted in `refused` (the fit simulates those itself).
+  struct FitLibrary {
+    std::vector<v1::FitLibraryCurve> curves;
+    int refused = 0;
+    int children_run = 0;  // the fit's children that ran to their end (not cancelled)
+  };
+  StatusOr<FitLibrary> library_curves_for(std::int64_t fit_id, std::int64_t max_bytes);
+  std::int64_t count_library_curves();
 
   StatusOr<v1::Job> get(std::int64_t job_id);
   // The job's last event sequence (no spec parsed: a study's waking of its watchers).

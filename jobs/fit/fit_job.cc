@@ -12,6 +12,7 @@
 
 #include "io/h5md.h"
 #include "jobs/common/result_file.h"
+#include "jobs/fit/fit_library.h"
 #include "jobs/fit/fit_spec.h"
 #include "physics/calibration/fit.h"
 #include "physics/calibration/models.h"
@@ -53,6 +54,8 @@ struct JobFit {
   cal::FitResult result;
   int simulations_run = 0;
   int curves_loaded = 0;
+  int server_curves = 0;      // curves the server attached to the spec
+  int child_simulations = 0;  // library simulations the server ran as this fit's children
   std::string library_dir;
 };
 
@@ -204,8 +207,8 @@ struct Hooks {
   std::function<bool()> should_stop;
 };
 
-StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, int threads,
-                         const Hooks& hooks) {
+StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, int threads, const Hooks& hooks,
+                         const v1::FitServerLibrary* server = nullptr) {
   JobFit out;
   out.library_dir = library_dir;
   auto progress = [&](double f, const std::string& stage) {
@@ -218,8 +221,7 @@ StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, in
     out.result = std::move(*r);
     return out;
   }
-  cal::LibraryOptions lo;
-  lo.threads = threads > 0 ? threads : 1;
+  const cal::LibraryOptions lo = fit_library_options(threads);
   cal::CurveLibrary library(lo);
   StatusOr<int> loaded = library.load(library_dir);
   out.curves_loaded = loaded.ok() ? *loaded : 0;
@@ -227,29 +229,37 @@ StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, in
   if (!loaded.ok() && loaded.status().code() != StatusCode::kNotFound) {
     notes.push_back("library not read: " + loaded.status().message());
   }
-  progress(0.0, "library " + library_dir + ": " + std::to_string(out.curves_loaded) + " curves loaded");
+  // The server's curves (its child jobs' and earlier fits'), checked again here.
+  if (server != nullptr) {
+    out.child_simulations = std::max(0, server->child_simulations());
+    for (const v1::FitLibraryCurve& c : server->curves()) {
+      cal::LibraryCurve curve;
+      curve.mooney_rivlin_w = c.mooney_rivlin_w();
+      curve.deformation.assign(c.deformation().begin(), c.deformation().end());
+      curve.force_scaled.assign(c.force_scaled().begin(), c.force_scaled().end());
+      curve.failure = c.failure();
+      if (Status s = library.insert(c.key(), std::move(curve)); s.ok()) {
+        ++out.server_curves;
+      } else {
+        notes.push_back("server curve not used: " + s.message());
+      }
+    }
+  }
+  progress(0.0, "library " + library_dir + ": " + std::to_string(out.curves_loaded) + " curves loaded, " +
+                    std::to_string(out.server_curves) + " from the server");
 
   // The curves the fit will ask for: every grid w (w free) or the one w, per
   // key, and the deepest deformation each key's curves must reach (as fit_curves computes it).
   const cal::FitOptions options = fit_options(plan);
+  StatusOr<std::vector<FitLibraryKey>> library_keys = fit_library_keys(plan, lo);
+  if (!library_keys.ok()) return library_keys.status();
   std::map<std::string, cal::CurveKey> keys;
   std::map<std::string, double> needed;
-  for (const FitCurvePlan& c : plan.curves) {
-    cal::CurveKey key;
-    key.geometry = geometry_of(plan);
-    key.probe_to_cell_radius = key.geometry == cal::Geometry::kProbe ? c.probe_radius_m / c.radius_m : 0.0;
-    key.poisson_ratio = plan.poisson_ratio;
-    key.numerics = options.numerics;
-    if (Status s = library.validate(key); !s.ok()) return invalid_argument("fit: " + s.message());
-    const std::string text = cal::curve_key_text(key, -1.0, lo);
-    keys[text] = key;
-    const double window = plan.fit_contact_point ? plan.contact_window_radii * c.radius_m : 0.0;
-    const double reach =
-        std::min(plan.library_max_deformation, (c.indentation_m.back() + window) / (2.0 * c.radius_m));
-    needed[text] = std::max(needed[text], reach);
+  for (const FitLibraryKey& k : *library_keys) {
+    keys[k.text] = k.key;
+    needed[k.text] = k.needed_max_deformation;
   }
-  const std::vector<double> ws =
-      plan.mooney_rivlin_w ? std::vector<double>{*plan.mooney_rivlin_w} : lo.w_grid;
+  const std::vector<double> ws = fit_library_w(plan, lo);
   const int total = static_cast<int>(keys.size() * ws.size());
   int done = 0, simulated = 0;
   double cut_w = -1.0;  // the largest w whose curve ends before the needed deformation (w free)
@@ -280,7 +290,7 @@ StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, in
       }
     }
   }
-  // A library whose grid stops at cut_w (the curves are in the directory, saved above).
+  // A library whose grid stops at cut_w.
   std::unique_ptr<cal::CurveLibrary> narrowed;
   cal::CurveLibrary* fit_library = &library;
   if (cut_w >= 0.0) {
@@ -290,9 +300,12 @@ StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, in
       if (w >= cut_w) narrow.w_grid.push_back(w);
     }
     if (narrow.w_grid.size() >= 3) {
+      // The same curves (from the directory, the server or simulated here), a shorter grid.
       narrowed = std::make_unique<cal::CurveLibrary>(narrow);
-      StatusOr<int> reread = narrowed->load(library_dir);
-      if (reread.ok() && static_cast<std::size_t>(*reread) >= library.size()) fit_library = narrowed.get();
+      bool copied = true;
+      for (const auto& [text, curve] : library.curves())
+        copied = copied && narrowed->insert(text, curve).ok();
+      if (copied) fit_library = narrowed.get();
     }
   }
   progress(0.9, "fitting " + std::to_string(plan.curves.size()) + " curves");
@@ -303,7 +316,8 @@ StatusOr<JobFit> compute(const FitPlan& plan, const std::string& library_dir, in
     return Status(r.status().code(), m.rfind("curves", 0) == 0 ? "fit." + m : m);
   }
   out.result = std::move(*r);
-  out.simulations_run = library.simulations_run() + (narrowed ? narrowed->simulations_run() : 0);
+  out.simulations_run =
+      library.simulations_run() + (narrowed ? narrowed->simulations_run() : 0) + out.child_simulations;
   for (std::string& n : notes) out.result.notes.push_back(std::move(n));
   return out;
 }
@@ -346,7 +360,9 @@ json fit_document(const FitPlan& plan, const JobFit& fit) {
                     {"target_vertex_count", plan.target_vertex_count},
                     {"load_points", plan.load_points},
                     {"max_deformation", plan.library_max_deformation},
-                    {"curves_loaded", fit.curves_loaded}};
+                    {"curves_loaded", fit.curves_loaded},
+                    {"server_curves", fit.server_curves},
+                    {"child_simulations", fit.child_simulations}};
   doc["simulations_run"] = fit.simulations_run;
   json per = json::array();
   for (std::size_t c = 0; c < fit.result.per_curve.size(); ++c) {
@@ -477,14 +493,18 @@ class FitJob final : public PreparedJob {
     creator.time_meaning =
         "not time: the fitted deformation ((indentation - contact offset) / (2 R)) of the sample; "
         "step is the sample's index in the spec's arrays";
-    auto writer = open_result(spec, options, creator);
+    // The server's curves are input of this attempt, not of the job: not in the result's spec.
+    v1::JobSpec written_spec = spec;
+    written_spec.mutable_fit()->clear_server_library();
+    auto writer = open_result(written_spec, options, creator);
     if (!writer.ok()) {
       outcome.status = writer.status();
       return outcome;
     }
     Hooks hooks{events.progress, events.should_stop};
     const std::string dir = options.library_dir.empty() ? default_library_dir() : options.library_dir;
-    StatusOr<JobFit> fit = compute(plan_, dir, options.threads, hooks);
+    StatusOr<JobFit> fit =
+        compute(plan_, dir, options.threads, hooks, spec.has_fit() ? &spec.fit().server_library() : nullptr);
     if (!fit.ok()) {
       (void)(*writer)->close();
       outcome.status = fit.status();

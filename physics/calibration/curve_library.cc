@@ -152,6 +152,60 @@ double CurveInterpolant::force_scaled(double w, double deformation) const {
   return scale * sum;
 }
 
+CurveInterpolant::AtW CurveInterpolant::at_w(double w) const {
+  AtW out;
+  out.owner_ = this;
+  out.w_ = w;
+  const std::size_t n = nodes_.size();
+  if (n == 0) return out;
+  // The stencil and its weights, as force_scaled chooses them.
+  std::vector<std::pair<std::size_t, double>> stencil;
+  if (n == 1) {
+    stencil.emplace_back(0, 1.0);
+  } else {
+    const double wc = std::clamp(w, nodes_.front().w, nodes_.back().w);
+    std::size_t k = 0;
+    while (k + 2 < n && wc > nodes_[k + 1].w) ++k;
+    if (interpolation_ == WInterpolation::kLinear || n == 2) {
+      const double t = (wc - nodes_[k].w) / (nodes_[k + 1].w - nodes_[k].w);
+      stencil = {{k, 1.0 - t}, {k + 1, t}};
+    } else {
+      const std::size_t width = std::min<std::size_t>(4, n);
+      std::size_t first = k > 0 ? k - 1 : 0;
+      if (first + width > n) first = n - width;
+      for (std::size_t j = first; j < first + width; ++j) {
+        double l = 1.0;
+        for (std::size_t m = first; m < first + width; ++m) {
+          if (m != j) l *= (wc - nodes_[m].w) / (nodes_[j].w - nodes_[m].w);
+        }
+        stencil.emplace_back(j, l);
+      }
+    }
+  }
+  // The shortest grid of the stencil, which every other must begin with: a
+  // curve that ended early holds the first load points of the others, and
+  // eps never exceeds max_deformation_, the end of the shortest curve.
+  const std::vector<double>* shortest = &nodes_[stencil.front().first].eps;
+  for (const auto& [j, l] : stencil) {
+    if (nodes_[j].eps.size() < shortest->size()) shortest = &nodes_[j].eps;
+  }
+  const std::vector<double>& eps = *shortest;
+  for (const auto& [j, l] : stencil) {
+    if (!std::equal(eps.begin(), eps.end(), nodes_[j].eps.begin())) return out;  // the general path
+  }
+  out.combined_ = true;
+  out.eps_ = &eps;
+  out.q_.assign(eps.size(), 0.0);
+  out.slope_.assign(eps.size(), 0.0);
+  for (const auto& [j, l] : stencil) {
+    for (std::size_t i = 0; i < eps.size(); ++i) {
+      out.q_[i] += l * nodes_[j].q[i];
+      out.slope_[i] += l * nodes_[j].slope[i];
+    }
+  }
+  return out;
+}
+
 CurveLibrary::CurveLibrary(LibraryOptions options) : options_(std::move(options)) {}
 
 Status CurveLibrary::validate(const CurveKey& key) const {
@@ -302,6 +356,32 @@ StatusOr<CurveInterpolant> CurveLibrary::fixed_w_interpolant(const CurveKey& key
   out.max_deformation_ = (*c)->max_deformation();
   out.nodes_.push_back(make_node(**c));
   return out;
+}
+
+Status CurveLibrary::insert(const std::string& key_text, LibraryCurve curve) {
+  std::map<std::string, std::string> fields = key_fields(key_text);
+  if (key_text.rfind("cellflow-calibration-curve;", 0) != 0 || fields["code"] != options_.code_version ||
+      fields["reference_radius_m"] != number_text(options_.reference_radius_m) ||
+      fields["reference_modulus_pa"] != number_text(options_.reference_modulus_pa)) {
+    return invalid_argument("library curve: its key is not of this code version and reference cell");
+  }
+  if (fields["mooney_rivlin_w"] != number_text(curve.mooney_rivlin_w)) {
+    return invalid_argument("library curve: w = " + number_text(curve.mooney_rivlin_w) +
+                            " is not the w of its key");
+  }
+  if (curve.deformation.empty() || curve.deformation.size() != curve.force_scaled.size()) {
+    return invalid_argument("library curve: no points, or deformations and forces of different lengths");
+  }
+  for (std::size_t i = 0; i < curve.deformation.size(); ++i) {
+    const double e = curve.deformation[i];
+    if (!std::isfinite(e) || !(e > 0.0) || !std::isfinite(curve.force_scaled[i]) ||
+        (i > 0 && !(e > curve.deformation[i - 1]))) {
+      return invalid_argument("library curve: point " + std::to_string(i) +
+                              ": expected increasing deformation > 0 and a finite force");
+    }
+  }
+  curves_.emplace(key_text, std::move(curve));
+  return Status::ok_status();
 }
 
 Status CurveLibrary::save(const std::string& directory) const {

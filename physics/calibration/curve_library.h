@@ -21,6 +21,8 @@
 // the first load point q is held at its first value.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -107,6 +109,29 @@ class CurveInterpolant {
   double w_max() const { return nodes_.empty() ? 0.0 : nodes_.back().w; }
   double max_deformation() const { return max_deformation_; }
 
+  // The interpolant at one w, for many eps (a fit's inner loop evaluates a
+  // whole curve's samples at one w and contact offset): the w stencil's
+  // Lagrange weights applied once to the nodes' q values and Hermite slopes
+  // (a Hermite cubic is linear in them, so this is the same function as
+  // force_scaled up to rounding) when the stencil's nodes share their eps
+  // grid (or its first points: a curve that ended early); otherwise it falls
+  // back to force_scaled. eval() with a
+  // nondecreasing eps walks the segments instead of searching them.
+  class AtW {
+   public:
+    double force_scaled(double deformation);  // = CurveInterpolant::force_scaled(w, deformation)
+
+   private:
+    friend class CurveInterpolant;
+    const CurveInterpolant* owner_ = nullptr;
+    double w_ = 0.0;
+    bool combined_ = false;
+    const std::vector<double>* eps_ = nullptr;
+    std::vector<double> q_, slope_;
+    std::size_t segment_ = 0;  // the last segment found
+  };
+  AtW at_w(double w) const;
+
   // One curve of the interpolant (built by CurveLibrary).
   struct Node {
     double w = 0.0;
@@ -120,6 +145,32 @@ class CurveInterpolant {
   WInterpolation interpolation_ = WInterpolation::kCubic;
   double max_deformation_ = 0.0;
 };
+
+// Inline: a fit calls it for every sample of every trial (curve_sums).
+inline double CurveInterpolant::AtW::force_scaled(double deformation) {
+  if (!combined_) return owner_ == nullptr ? 0.0 : owner_->force_scaled(w_, deformation);
+  if (!(deformation > 0.0)) return 0.0;
+  const double e = std::min(deformation, owner_->max_deformation_);
+  const double scale = e * std::sqrt(e);
+  const std::vector<double>& x = *eps_;
+  const std::size_t n = x.size();
+  if (n == 1 || e <= x.front()) return scale * q_.front();
+  if (e >= x.back()) return scale * q_.back();
+  // the segment [x_k, x_k+1) holding e: from the last one, forwards, else a search
+  std::size_t k = segment_;
+  if (k + 1 >= n || e < x[k]) {
+    k = static_cast<std::size_t>(std::upper_bound(x.begin(), x.end(), e) - x.begin()) - 1;
+  } else {
+    while (e >= x[k + 1]) ++k;
+  }
+  segment_ = k;
+  const double h = x[k + 1] - x[k];
+  const double t = (e - x[k]) / h;
+  const double t2 = t * t, t3 = t2 * t;
+  // Hermite basis as in Node::eval_q
+  return scale * ((2 * t3 - 3 * t2 + 1) * q_[k] + (t3 - 2 * t2 + t) * h * slope_[k] +
+                  (-2 * t3 + 3 * t2) * q_[k + 1] + (t3 - t2) * h * slope_[k + 1]);
+}
 
 // Not thread-safe: one fit (or one thread) at a time per library.
 class CurveLibrary {
@@ -146,9 +197,18 @@ class CurveLibrary {
   StatusOr<CurveInterpolant> fixed_w_interpolant(const CurveKey& key, double w,
                                                  double needed_max_deformation);
 
+  // Adds a curve computed elsewhere (the server's library, built by child
+  // jobs) under its key text. Refused (INVALID_ARGUMENT, nothing added) unless
+  // the key carries this library's code version and reference cell, names
+  // the curve's w, and the curve has increasing eps > 0 and finite forces; a
+  // curve already held is kept.
+  Status insert(const std::string& key_text, LibraryCurve curve);
+
   // Simulations run by this library since it was made (loaded curves not counted).
   int simulations_run() const { return simulations_run_; }
   std::size_t size() const { return curves_.size(); }
+  // Every curve held, by key text.
+  const std::map<std::string, LibraryCurve>& curves() const { return curves_; }
 
   // Writes every curve to directory (created if missing), one file each,
   // written under a temporary name and renamed. Reads every *.csv file of the

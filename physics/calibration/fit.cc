@@ -44,8 +44,9 @@ struct Sums {
 Sums curve_sums(const Prepared& p, double w, double s) {
   Sums out;
   out.c = p.c;
+  CurveInterpolant::AtW model = p.model->at_w(w);  // x increasing: eps walks the segments
   for (std::size_t i = 0; i < p.x.size(); ++i) {
-    const double g = p.r2 * p.model->force_scaled(w, (p.x[i] - s) / p.two_r);
+    const double g = p.r2 * model.force_scaled((p.x[i] - s) / p.two_r);
     out.a += p.weight[i] * p.f[i] * g;
     out.b += p.weight[i] * g * g;
   }
@@ -350,24 +351,81 @@ class Problem {
   bool fit_contact_ = true;
 };
 
-// The 95 % profile interval of one parameter at its optimum `best`:
-// profile(theta) <= threshold inside; bounded by [lo, hi].
-Estimate profile_interval(double best, double lo, double hi, double step, double threshold,
+// The root of g in the bracket [inside, outside], g(inside) <= 0 < g(outside),
+// by Brent's method (inverse quadratic and secant steps, bisection when they
+// fail), to a bracket of width 2 tolerance; returns the end with g <= 0. A
+// profile is smooth near its threshold: about 5 evaluations where bisection
+// to the same tolerance takes 16.
+double threshold_crossing(const std::function<double(double)>& g, double inside, double g_inside,
+                          double outside, double g_outside, double tolerance) {
+  double a = inside, b = outside, c = outside, fa = g_inside, fb = g_outside, fc = g_outside;
+  double d = b - a, e = d;
+  for (int iter = 0; iter < 100; ++iter) {
+    if ((fb > 0.0) == (fc > 0.0)) {
+      c = a, fc = fa;
+      d = e = b - a;
+    }
+    if (std::abs(fc) < std::abs(fb)) {
+      a = b, b = c, c = a;
+      fa = fb, fb = fc, fc = fa;
+    }
+    const double tol1 = 2.0 * std::numeric_limits<double>::epsilon() * std::abs(b) + 0.5 * tolerance;
+    const double xm = 0.5 * (c - b);
+    if (std::abs(xm) <= tol1 || fb == 0.0) break;
+    if (std::abs(e) >= tol1 && std::abs(fa) > std::abs(fb)) {
+      double p, q;
+      const double s = fb / fa;
+      if (a == c) {  // secant
+        p = 2.0 * xm * s;
+        q = 1.0 - s;
+      } else {  // inverse quadratic
+        const double qa = fa / fc, r = fb / fc;
+        p = s * (2.0 * xm * qa * (qa - r) - (b - a) * (r - 1.0));
+        q = (qa - 1.0) * (r - 1.0) * (s - 1.0);
+      }
+      if (p > 0.0) q = -q;
+      p = std::abs(p);
+      if (2.0 * p < std::min(3.0 * xm * q - std::abs(tol1 * q), std::abs(e * q))) {
+        e = d;
+        d = p / q;
+      } else {
+        d = e = xm;
+      }
+    } else {
+      d = e = xm;
+    }
+    a = b, fa = fb;
+    b += std::abs(d) > tol1 ? d : (xm > 0.0 ? tol1 : -tol1);
+    fb = g(b);
+  }
+  // b and c bracket the crossing (or b is on it): the end inside the threshold
+  return fb <= 0.0 ? b : c;
+}
+
+// The 95 % profile interval of one parameter at its optimum `best` (where
+// the profile is best_value): profile(theta) <= threshold inside; bounded by
+// [lo, hi]. Steps doubling from `step` until outside, then the crossing to
+// 2^-16 of the last step.
+Estimate profile_interval(double best, double best_value, double lo, double hi, double step, double threshold,
                           const std::function<double(double)>& profile) {
   Estimate est;
   est.value = best;
   for (const int direction : {+1, -1}) {
     const double bound = direction > 0 ? hi : lo;
     double inside = best, delta = step, outside = best;
+    double value_inside = best_value, value_outside = 0.0;
     bool at_bound = false;
     for (;;) {
       double trial = best + direction * delta;
       if (direction > 0 ? trial >= bound : trial <= bound) trial = bound;
-      if (profile(trial) > threshold) {
+      const double value = profile(trial);
+      if (value > threshold) {
         outside = trial;
+        value_outside = value;
         break;
       }
       inside = trial;
+      value_inside = value;
       if (trial == bound) {
         at_bound = true;
         break;
@@ -375,10 +433,9 @@ Estimate profile_interval(double best, double lo, double hi, double step, double
       delta *= 2.0;
     }
     if (!at_bound) {
-      for (int k = 0; k < 16; ++k) {  // bisection to 2^-16 of the last step
-        const double mid = 0.5 * (inside + outside);
-        (profile(mid) > threshold ? outside : inside) = mid;
-      }
+      const auto g = [&](double theta) { return profile(theta) - threshold; };
+      inside = threshold_crossing(g, inside, std::min(0.0, value_inside - threshold), outside,
+                                  value_outside - threshold, std::ldexp(std::abs(outside - inside), -16));
     }
     if (direction > 0) {
       est.upper = inside;
@@ -430,18 +487,19 @@ ParameterFit run_fit(const Problem& problem, const FitOptions& options) {
       return last->objective;
     };
   };
-  fit.youngs_modulus_pa =
-      profile_interval(best.e, 1e-6 * best.e, 1e6 * best.e, 0.01 * best.e, threshold, profile(best.e, fix_e));
-  fit.mooney_rivlin_w = problem.w_free() ? profile_interval(best.w, problem.w_lo(), problem.w_hi(), 0.01,
-                                                            threshold, profile(best.w, fix_w))
-                                         : fixed_estimate(best.w);
+  fit.youngs_modulus_pa = profile_interval(best.e, best.objective, 1e-6 * best.e, 1e6 * best.e, 0.01 * best.e,
+                                           threshold, profile(best.e, fix_e));
+  fit.mooney_rivlin_w = problem.w_free()
+                            ? profile_interval(best.w, best.objective, problem.w_lo(), problem.w_hi(), 0.01,
+                                               threshold, profile(best.w, fix_w))
+                            : fixed_estimate(best.w);
   for (std::size_t c = 0; c < problem.size(); ++c) {
     const Prepared& p = problem.curve(c);
     CurvePart part;
     part.name = p.name;
     part.contact_offset_m =
         problem.s_free(c)
-            ? profile_interval(best.s[c], -p.window, p.window, 0.002 * p.radius, threshold,
+            ? profile_interval(best.s[c], best.objective, -p.window, p.window, 0.002 * p.radius, threshold,
                                profile(best.s[c], [c](double s) { return fix_s(static_cast<int>(c), s); }))
             : fixed_estimate(best.s[c]);
     part.points = p.index;

@@ -27,7 +27,8 @@
 // value theta of one parameter is inside when
 //   S_prof(theta) - S_min <= 3.841 sigma2       (chi-square, 1 degree of freedom, 95 %)
 // where S_prof(theta) minimises S over all other parameters at that theta.
-// The bounds are found by doubling steps and bisection; a bound that reaches
+// The bounds are found by doubling steps, then the crossing of the threshold
+// by Brent's root finding to 2^-16 of the last step; a bound that reaches
 // the parameter's range (w in [0, 1], the contact window, E > 0) is reported
 // there and flagged. Noiseless data (S_min = 0) give intervals of zero width.
 // Each profile point's minimisation starts from the previous point's optimum

@@ -189,5 +189,68 @@ TEST(CurveLibrary, InterpolationErrorAgainstDirectSimulations) {
               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
+// Curves inserted without a simulation (as the server's library hands them
+// to a fit): analytic f = eps^1.5 (1 + a(w) eps + b(w) eps^2) on a shared
+// grid of load points; at w < 0.1 a curve that ended early (`low` = kShort:
+// the first 8 of the 12 points) or one on another grid (kShifted).
+enum class LowCurves { kSame, kShort, kShifted };
+CurveLibrary analytic_library(CurveKey* key, LowCurves low) {
+  CurveLibrary library;
+  key->numerics.target_vertex_count = 300;
+  key->numerics.load_points = 12;
+  for (const double w : library.options().w_grid) {
+    LibraryCurve c;
+    c.mooney_rivlin_w = w;
+    const bool odd = w < 0.1 && low != LowCurves::kSame;
+    const int points = odd && low == LowCurves::kShort ? 8 : 12;
+    for (int i = 1; i <= points; ++i) {
+      const double eps = 0.75 * (odd && low == LowCurves::kShifted ? i - 0.5 : i) / 12.0;
+      c.deformation.push_back(eps);
+      c.force_scaled.push_back(std::pow(eps, 1.5) * (1.0 + (1.5 - w) * eps + (0.5 + w * w) * eps * eps));
+    }
+    if (points < 12) c.failure = "ended early";
+    EXPECT_TRUE(library.insert(curve_key_text(*key, w, library.options()), std::move(c)).ok());
+  }
+  return library;
+}
+
+TEST(CurveLibrary, InsertedCurvesAreCheckedAndAtWEqualsForceScaled) {
+  CurveKey key;
+  CurveLibrary library = analytic_library(&key, LowCurves::kSame);
+  EXPECT_EQ(library.simulations_run(), 0);
+  // Refused: another code version, a w that is not the key's, a decreasing eps.
+  LibraryCurve bad;
+  bad.mooney_rivlin_w = 0.5;
+  bad.deformation = {0.1, 0.2};
+  bad.force_scaled = {0.01, 0.02};
+  LibraryOptions other;
+  other.code_version = "older";
+  EXPECT_FALSE(library.insert(curve_key_text(key, 0.5, other), bad).ok());
+  EXPECT_FALSE(library.insert(curve_key_text(key, 0.25, library.options()), bad).ok());
+  bad.deformation = {0.2, 0.1};
+  EXPECT_FALSE(library.insert(curve_key_text(key, 0.5, library.options()), bad).ok());
+
+  for (const LowCurves low : {LowCurves::kSame, LowCurves::kShort, LowCurves::kShifted}) {
+    CurveKey k;
+    CurveLibrary lib = analytic_library(&k, low);
+    StatusOr<CurveInterpolant> grid = lib.grid_interpolant(k, low == LowCurves::kShort ? 0.5 : 0.7);
+    ASSERT_TRUE(grid.ok()) << grid.status().to_string();
+    EXPECT_EQ(lib.simulations_run(), 0) << "every grid curve was inserted";
+    for (const double w : {0.0, 0.03, 0.0625, 0.2, 0.5, 0.77, 1.0}) {
+      CurveInterpolant::AtW at = grid->at_w(w);
+      // increasing eps (the walk), then a step back (the search), beyond the end and below 0
+      std::vector<double> eps;
+      for (int i = -2; i <= 80; ++i) eps.push_back(0.01 * i);
+      eps.push_back(0.3);
+      eps.push_back(0.05);
+      for (const double e : eps) {
+        const double direct = grid->force_scaled(w, e);
+        EXPECT_NEAR(at.force_scaled(e), direct, 1e-13 * std::max(1.0, std::abs(direct)))
+            << "w " << w << " eps " << e << " low curves " << static_cast<int>(low);
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace cellflow::calibration

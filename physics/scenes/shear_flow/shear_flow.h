@@ -239,7 +239,7 @@ struct ShearFlowSetup {
   double time_step_s = 0.0;            // dt
   int nx = 0, ny = 0, nz = 0;          // lattice nodes
   double box_m[3] = {0, 0, 0};         // nx dx, ny dx (= H), nz dx
-  double wall_speed_m_per_s = 0.0;     // u_wall = H gammadot / 2
+  double wall_speed_m_per_s = 0.0;     // u_wall = H gammadot / 2 (Lees-Edwards: the speed at y = 0 and H)
   double mach_number = 0.0;            // u_wall / c_s
   double shear_rate_lattice = 0.0;     // gammadot dt
   double steps_per_strain = 0.0;       // 1 / (gammadot dt)
@@ -255,15 +255,6 @@ struct ShearFlowSetup {
   // Non-empty: the resolving lattice was refused (memory, work, Mach) and
   // the run uses numerics.cells_per_radius; the reason (a result warning).
   std::string resolution_note;
-  double lattice_spacing_m = 0.0;   // dx
-  double time_step_s = 0.0;         // dt
-  int nx = 0, ny = 0, nz = 0;       // lattice nodes
-  double box_m[3] = {0, 0, 0};      // nx dx, ny dx (= H), nz dx
-  double wall_speed_m_per_s = 0.0;  // u_wall = H gammadot / 2 (Lees-Edwards: the speed at y = 0 and H)
-  double mach_number = 0.0;         // u_wall / c_s
-  double shear_rate_lattice = 0.0;  // gammadot dt
-  double steps_per_strain = 0.0;    // 1 / (gammadot dt)
-  std::size_t lattice_bytes = 0;
 };
 
 // validate + units + Mach + memory checks, no allocation: what a server

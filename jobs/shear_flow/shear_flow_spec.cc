@@ -78,7 +78,7 @@ Status convert_numerics(const v1::ShearFlowNumerics& in, scenes::ShearFlowNumeri
   if (in.has_resolve_thickness()) n.resolve_thickness = in.resolve_thickness();
   if (in.has_boundaries()) {
     StatusOr<scenes::ShearFlowBoundaries> boundaries =
-        scenes::parse_boundaries(in.boundaries(), prefix + "numerics.boundaries");
+        scenes::parse_boundaries(in.boundaries(), prefix + "boundaries");
     if (!boundaries.ok()) return boundaries.status();
     n.boundaries = *boundaries;
   }

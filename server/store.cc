@@ -596,6 +596,30 @@ StatusOr<std::optional<v1::Job>> job_of_request(sqlite3* db, const std::string& 
   return std::optional<v1::Job>(std::move(*job));
 }
 
+// Inserts a queued top-level job (a job, a study or a fit) under the caller's
+// transaction; child_count and library_fit are its study/fit columns (0 for
+// a plain job). Returns its id.
+StatusOr<std::int64_t> insert_top_level_job(sqlite3* db, const std::string& owner,
+                                            const std::string& request_id, const v1::JobSpec& spec,
+                                            std::int64_t memory_bytes, std::int64_t now_ms, int child_count,
+                                            bool library_fit, const char* what) {
+  Stmt insert(db,
+              "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner, child_count, "
+              "library_fit) VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING id");
+  if (request_id.empty()) {
+    insert.bind_null(1);
+  } else {
+    insert.bind(1, scoped_request_id(owner, request_id));
+  }
+  insert.bind_blob(2, spec.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
+  insert.bind(4, memory_bytes).bind(5, now_ms).bind(6, owner).bind(7, child_count);
+  insert.bind(8, library_fit ? 1 : 0);
+  if (insert.step() != SQLITE_ROW) return sqlite_error(db, what);
+  const std::int64_t id = insert.int64(0);
+  insert.step();
+  return id;
+}
+
 }  // namespace
 
 StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::string& request_id,
@@ -609,20 +633,10 @@ StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::str
   } else if (earlier->has_value()) {
     return Submitted{std::move(**earlier), true};
   }
-  Stmt insert(writer_,
-              "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner) "
-              "VALUES (?, ?, ?, ?, ?, ?) RETURNING id");
-  if (request_id.empty()) {
-    insert.bind_null(1);
-  } else {
-    insert.bind(1, scoped_request_id(owner, request_id));
-  }
-  insert.bind(6, owner);
-  insert.bind_blob(2, spec.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
-  insert.bind(4, estimated_memory_bytes).bind(5, now_ms);
-  if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert job");
-  const std::int64_t id = insert.int64(0);
-  insert.step();
+  auto inserted = insert_top_level_job(writer_, owner, request_id, spec, estimated_memory_bytes, now_ms, 0,
+                                       false, "insert job");
+  if (!inserted.ok()) return inserted.status();
+  const std::int64_t id = *inserted;
   auto seq =
       append_event_row(writer_, id, 0, state_event(v1::Job::QUEUED, "submitted", ""), std::nullopt, now_ms);
   if (!seq.ok()) return seq.status();
@@ -647,22 +661,10 @@ StatusOr<Store::Submitted> Store::submit_study(const v1::JobSpec& study,
   if (children.empty()) return Status(StatusCode::kInvalidArgument, "study: no children");
   std::int64_t memory = 0;
   for (const StudyChild& child : children) memory = std::max(memory, child.memory_bytes);
-  std::int64_t study_id = 0;
-  {
-    Stmt insert(writer_,
-                "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner, child_count) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?) RETURNING id");
-    if (request_id.empty()) {
-      insert.bind_null(1);
-    } else {
-      insert.bind(1, scoped_request_id(owner, request_id));
-    }
-    insert.bind_blob(2, study.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
-    insert.bind(4, memory).bind(5, now_ms).bind(6, owner).bind(7, static_cast<int>(children.size()));
-    if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert study");
-    study_id = insert.int64(0);
-    insert.step();
-  }
+  auto inserted = insert_top_level_job(writer_, owner, request_id, study, memory, now_ms,
+                                       static_cast<int>(children.size()), false, "insert study");
+  if (!inserted.ok()) return inserted.status();
+  const std::int64_t study_id = *inserted;
   auto seq = append_event_row(
       writer_, study_id, 0,
       state_event(v1::Job::QUEUED, "submitted (" + std::to_string(children.size()) + " children)", ""),
@@ -705,22 +707,11 @@ StatusOr<Store::Submitted> Store::submit_fit(const v1::JobSpec& fit, std::int64_
   } else if (earlier->has_value()) {
     return Submitted{std::move(**earlier), true};
   }
-  std::int64_t fit_id = 0;
-  {
-    Stmt insert(writer_,
-                "INSERT INTO jobs (request_id, spec, state, memory_bytes, create_ms, owner, library_fit) "
-                "VALUES (?, ?, ?, ?, ?, ?, 1) RETURNING id");
-    if (request_id.empty()) {
-      insert.bind_null(1);
-    } else {
-      insert.bind(1, scoped_request_id(owner, request_id));
-    }
-    insert.bind_blob(2, fit.SerializeAsString()).bind(3, static_cast<int>(v1::Job::QUEUED));
-    insert.bind(4, memory_bytes).bind(5, now_ms).bind(6, owner);
-    if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert fit");
-    fit_id = insert.int64(0);
-    insert.step();
-  }
+  // child_count is set below, once the children that need queueing are known.
+  auto inserted =
+      insert_top_level_job(writer_, owner, request_id, fit, memory_bytes, now_ms, 0, true, "insert fit");
+  if (!inserted.ok()) return inserted.status();
+  const std::int64_t fit_id = *inserted;
   // Under the write lock, so that of two fits submitted together only the
   // first queues a curve and the second waits for that child.
   Stmt need(writer_,

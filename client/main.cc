@@ -444,13 +444,17 @@ int plot_study(client::Client& client, const v1::Job& study_job, const std::stri
   }
   const std::string title =
       study_job.id() + " (study of " + std::to_string(study_job.child_count()) + " children)";
-  // A suspension study: against Ca (a study axis cannot index a kind's volume fraction).
-  const std::string text =
-      !suspensions.empty()
-          ? client::suspension_points_svg(suspensions, client::SuspensionAxis::kCapillaryNumber, title)
-      : !flow      ? client::curves_overlay_svg(curves, title)
-      : against_ca ? client::steady_deformation_svg(by_ca, title)
-                   : client::swept_steady_svg(swept, first_path, title);
+  // A suspension study: against the volume fraction when the first axis sweeps
+  // a kind's (suspension.cells[k].volumeFraction), else against Ca.
+  const bool phi_axis = first_path.ends_with("volumeFraction") || first_path.ends_with("volume_fraction");
+  const std::string text = !suspensions.empty() ? client::suspension_points_svg(
+                                                      suspensions,
+                                                      phi_axis ? client::SuspensionAxis::kVolumeFraction
+                                                               : client::SuspensionAxis::kCapillaryNumber,
+                                                      title)
+                           : !flow      ? client::curves_overlay_svg(curves, title)
+                           : against_ca ? client::steady_deformation_svg(by_ca, title)
+                                        : client::swept_steady_svg(swept, first_path, title);
   if (!client::write_output(output, text)) {
     std::fprintf(stderr, "cellflow: cannot write %s\n", output.c_str());
     return ExitCode::kExitUsage;

@@ -43,15 +43,47 @@ std::string field_names(const Descriptor* message) {
   return names;
 }
 
-// The JSON keys along `path`, checked against the spec's messages; an error
-// text (without the field name) when the path names no settable field of `json`.
-StatusOr<std::vector<std::string>> resolve_path(const std::string& path, const Json& json) {
+// One step of a path: a field's JSON name and, for an element of a repeated
+// message field ("cells[1]"), the element's index.
+struct PathStep {
+  std::string key;
+  int index = -1;  // -1: the field itself
+};
+
+// Bound of an element index in a path: a spec cannot hold more elements in
+// its 4 MiB anyway, and six digits cannot overflow an int.
+constexpr std::size_t kMaxPathIndexDigits = 6;
+
+// "cells[1]" -> {"cells", 1}; "cells" -> {"cells", -1}; an error text for a
+// malformed index ("cells[", "cells[-1]", "cells[x]").
+StatusOr<PathStep> parse_path_part(const std::string& path, const std::string& part) {
+  const std::size_t open = part.find('[');
+  if (open == std::string::npos) {
+    if (part.find(']') != std::string::npos) {
+      return invalid_argument("\"" + path + "\": \"" + part + "\" has a ']' without '['");
+    }
+    return PathStep{part, -1};
+  }
+  const std::string digits = part.substr(open + 1, part.size() - open - 2);
+  if (part.back() != ']' || digits.empty() || digits.size() > kMaxPathIndexDigits ||
+      digits.find_first_not_of("0123456789") != std::string::npos) {
+    return invalid_argument("\"" + path + "\": \"" + part +
+                            "\" is not NAME or NAME[INDEX] with a decimal INDEX (e.g. cells[0])");
+  }
+  return PathStep{part.substr(0, open), std::stoi(digits)};
+}
+
+// The JSON steps along `path`, checked against the spec's messages; an error
+// text (without the field name) when the path names no settable field of
+// `json`. An element of a list is reached by its index, and only when the
+// spec has it: a study changes elements, it does not add them.
+StatusOr<std::vector<PathStep>> resolve_path(const std::string& path, const Json& json) {
   if (path.empty()) return invalid_argument("empty (a field path such as compression.cell.youngsModulusPa)");
   if (path.size() > kMaxStudyPathBytes) {
     return invalid_argument(std::to_string(path.size()) + " bytes; at most " +
                             std::to_string(kMaxStudyPathBytes));
   }
-  std::vector<std::string> keys;
+  std::vector<PathStep> steps;
   const Descriptor* message = v1::JobSpec::descriptor();
   const Json* object = &json;
   std::string walked = "the spec";
@@ -63,10 +95,12 @@ StatusOr<std::vector<std::string>> resolve_path(const std::string& path, const J
                               "\" cannot be a field of it");
     }
     if (part.empty()) return invalid_argument("\"" + path + "\": an empty name between dots");
-    const FieldDescriptor* field = find_field(message, part);
+    auto step = parse_path_part(path, part);
+    if (!step.ok()) return step.status();
+    const FieldDescriptor* field = find_field(message, step->key);
     if (field == nullptr) {
       return invalid_argument("\"" + path + "\": " + walked + " (" + message->full_name() +
-                              ") has no field \"" + part + "\"; its fields: " + field_names(message));
+                              ") has no field \"" + step->key + "\"; its fields: " + field_names(message));
     }
     if (message == v1::JobSpec::descriptor() && field->number() == v1::JobSpec::kStudyFieldNumber) {
       return invalid_argument("\"" + path + "\": a study cannot set a study (nested studies are refused)");
@@ -82,12 +116,33 @@ StatusOr<std::vector<std::string>> resolve_path(const std::string& path, const J
         }
       }
     }
-    keys.push_back(field->json_name());
+    const bool indexed = step->index >= 0;
+    if (indexed &&
+        (!field->is_repeated() || field->is_map() || field->type() != FieldDescriptor::TYPE_MESSAGE)) {
+      return invalid_argument("\"" + path + "\": " + field->json_name() +
+                              " is not a list of messages; it takes no [index]");
+    }
+    const Json* value = object != nullptr && object->is_object() && object->contains(field->json_name())
+                            ? &(*object)[field->json_name()]
+                            : nullptr;
+    if (indexed) {
+      const std::size_t size = value != nullptr && value->is_array() ? value->size() : 0;
+      if (static_cast<std::size_t>(step->index) >= size) {
+        return invalid_argument("\"" + path + "\": " + field->json_name() + " has " + std::to_string(size) +
+                                " element(s) in the spec, so [" + std::to_string(step->index) +
+                                "] does not exist (a study changes elements; it does not add them)");
+      }
+      value = &(*value)[static_cast<std::size_t>(step->index)];
+    }
+    steps.push_back(PathStep{field->json_name(), step->index});
     const bool last = i + 1 == parts.size();
     if (!last) {
-      if (field->type() != FieldDescriptor::TYPE_MESSAGE || field->is_repeated()) {
+      if (field->type() != FieldDescriptor::TYPE_MESSAGE || (field->is_repeated() && !indexed)) {
         return invalid_argument("\"" + path + "\": " + field->json_name() + " is " +
-                                (field->is_repeated() ? "a list or map" : "not a message") +
+                                (field->is_map() ? "a map"
+                                 : field->is_repeated()
+                                     ? "a list (name an element: " + field->json_name() + "[0])"
+                                     : "not a message") +
                                 "; only its whole value can be set");
       }
       // Well-known types have JSON forms of their own (a Timestamp is a string).
@@ -97,13 +152,11 @@ StatusOr<std::vector<std::string>> resolve_path(const std::string& path, const J
                                 ") has a JSON form of its own; set it whole");
       }
       message = field->message_type();
-      walked = field->json_name();
-      object = object != nullptr && object->is_object() && object->contains(keys.back())
-                   ? &(*object)[keys.back()]
-                   : nullptr;
+      walked = indexed ? field->json_name() + "[" + std::to_string(step->index) + "]" : field->json_name();
+      object = value;
     }
   }
-  return keys;
+  return steps;
 }
 
 std::string spec_json_compact(const v1::JobSpec& spec) {
@@ -114,15 +167,30 @@ std::string spec_json_compact(const v1::JobSpec& spec) {
   return text;
 }
 
-// Sets keys -> value in `json`, creating the objects on the way.
-void set_at(Json& json, const std::vector<std::string>& keys, Json value) {
+// Sets steps -> value in `json`, creating the objects on the way (the
+// elements a step indexes exist: resolve_path checked them).
+void set_at(Json& json, const std::vector<PathStep>& steps, Json value) {
   Json* node = &json;
-  for (std::size_t i = 0; i + 1 < keys.size(); ++i) {
-    Json& child = (*node)[keys[i]];
+  for (std::size_t i = 0; i < steps.size(); ++i) {
+    const bool last = i + 1 == steps.size();
+    Json& child = (*node)[steps[i].key];
+    if (steps[i].index >= 0) {
+      Json& element = child[static_cast<std::size_t>(steps[i].index)];
+      if (last) {
+        element = std::move(value);
+        return;
+      }
+      if (!element.is_object()) element = Json::object();
+      node = &element;
+      continue;
+    }
+    if (last) {
+      child = std::move(value);
+      return;
+    }
     if (!child.is_object()) child = Json::object();
     node = &child;
   }
-  (*node)[keys.back()] = std::move(value);
 }
 
 StatusOr<Json> parse_value(const std::string& value_json) {
@@ -238,7 +306,8 @@ StatusOr<int> count_study_points(const v1::StudySpec& study, int max_points) {
 
 StatusOr<std::vector<StudyPoint>> expand_study(const v1::StudySpec& study, int max_points) {
   if (!study.has_base() || scene_name(study.base()).empty()) {
-    return invalid_argument("study.base: a job spec with a scene (compression, indentation, shearFlow, fit, suspension)");
+    return invalid_argument(
+        "study.base: a job spec with a scene (compression, indentation, shearFlow, fit, suspension)");
   }
   if (study.base().has_study()) {
     return invalid_argument("study.base: a study cannot hold a study (nested studies are refused)");
@@ -248,7 +317,7 @@ StatusOr<std::vector<StudyPoint>> expand_study(const v1::StudySpec& study, int m
 
   // Every path and value checked once, before the points are made.
   const Json base = Json::parse(spec_json_compact(study.base()), nullptr, false);
-  std::vector<std::vector<std::string>> keys(study.axes_size());
+  std::vector<std::vector<PathStep>> keys(study.axes_size());
   std::vector<std::vector<Json>> values(study.axes_size());
   for (int i = 0; i < study.axes_size(); ++i) {
     const std::string field = "study.axes[" + std::to_string(i) + "]";

@@ -23,7 +23,9 @@ inline constexpr std::size_t kMaxStudyPathBytes = 256;
 inline constexpr std::size_t kMaxStudyValueBytes = 4096;
 
 // Sets the field at `path` (dot-separated protobuf JSON names, or the proto
-// field names) of `spec` to the JSON value `value_json`. INVALID_ARGUMENT
+// field names; an element of a list of messages by its index, as in
+// "suspension.cells[1].volumeFraction", when the spec has that element) of
+// `spec` to the JSON value `value_json`. INVALID_ARGUMENT
 // names `path_field` when the path is not a field of the spec (unknown, not
 // a message on the way, a scene the spec does not set, a study) and
 // `value_field` when the value is not JSON or not of the field's type.

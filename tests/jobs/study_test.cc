@@ -169,6 +169,55 @@ TEST(StudyExpansion, SetSpecFieldCreatesMissingMessagesAndNamesItsArguments) {
   EXPECT_EQ(bad.status().message().rfind("--set: ", 0), 0u);
 }
 
+v1::JobSpec suspension_base() {
+  v1::JobSpec spec;
+  auto* s = spec.mutable_suspension();
+  auto* first = s->add_cells();
+  first->mutable_cell()->set_radius_m(6e-6);
+  first->set_volume_fraction(0.1);
+  auto* second = s->add_cells();
+  second->mutable_cell()->set_radius_m(4e-6);
+  second->set_count(2);
+  s->set_capillary_number(0.1);
+  return spec;
+}
+
+TEST(StudyExpansion, AnElementOfAListIsReachedByItsIndex) {
+  v1::StudySpec study = study_of(suspension_base());
+  add_axis(study, "suspension.cells[0].volumeFraction", {"0.11", "0.22"});
+  add_axis(study, "suspension.cells[1].cell.radiusM", {"3e-6"});
+  auto points = expand_study(study);
+  ASSERT_TRUE(points.ok()) << points.status().to_string();
+  ASSERT_EQ(points->size(), 2u);
+  for (int p = 0; p < 2; ++p) {
+    const auto& s = (*points)[static_cast<std::size_t>(p)].spec.suspension();
+    ASSERT_EQ(s.cells_size(), 2);  // elements are changed in place, none added
+    EXPECT_DOUBLE_EQ(s.cells(0).volume_fraction(), p == 0 ? 0.11 : 0.22);
+    EXPECT_DOUBLE_EQ(s.cells(0).cell().radius_m(), 6e-6);
+    EXPECT_DOUBLE_EQ(s.cells(1).cell().radius_m(), 3e-6);
+    EXPECT_EQ(s.cells(1).count(), 2);
+  }
+  // A whole element can be set too.
+  auto whole = set_spec_field(suspension_base(), "suspension.cells[1]", R"({"count": 5})");
+  ASSERT_TRUE(whole.ok()) << whole.status().to_string();
+  EXPECT_EQ(whole->suspension().cells(1).count(), 5);
+  EXPECT_FALSE(whole->suspension().cells(1).has_cell());
+  EXPECT_DOUBLE_EQ(whole->suspension().cells(0).volume_fraction(), 0.1);
+}
+
+TEST(StudyExpansion, BadIndicesAreRefusedNamingThePath) {
+  const v1::JobSpec base = suspension_base();
+  for (const char* path :
+       {"suspension.cells[2].count", "suspension.cells[-1].count", "suspension.cells[x].count",
+        "suspension.cells[0", "suspension.cells0].count", "suspension.cells[1234567].count",
+        "suspension.cells.count", "suspension.capillaryNumber[0]", "suspension.cells[0].placements[0].xM"}) {
+    auto set = set_spec_field(base, path, "1", "study.axes[0].path");
+    ASSERT_FALSE(set.ok()) << path;
+    EXPECT_NE(set.status().message().find("study.axes[0].path"), std::string::npos) << set.status().message();
+    EXPECT_NE(set.status().message().find(path), std::string::npos) << set.status().message();
+  }
+}
+
 TEST(StudyExpansion, ValueListsSplitAtTopLevelCommas) {
   EXPECT_EQ(split_value_list("1,2.5,[3,4],\"a,b\",{\"x\":1,\"y\":2}"),
             (std::vector<std::string>{"1", "2.5", "[3,4]", "\"a,b\"", "{\"x\":1,\"y\":2}"}));

@@ -317,7 +317,49 @@ void fill_flow_numerics(Gen& g, v1::ShearFlowNumerics* n) {
 // A suspension: 1 to 3 kinds (sometimes none, or more than the 64 allowed),
 // each counted, given a volume fraction or placed (inside, outside, on top of
 // one another), with its own viscosity ratio; the suspension's numerics.
+// A small suspension that the scene accepts and that is cheap enough to run:
+// one or two kinds of a few coarse cells (counted, by volume fraction or
+// placed apart), any lambda, a short run on a coarse lattice. Without it
+// almost no random suspension passes every check, and none would run and
+// have its peak memory held against the estimate.
+void fill_runnable_suspension(Gen& g, v1::SuspensionSpec* s) {
+  const int kinds = static_cast<int>(1 + g.below(2));
+  const double radius = g.real({6e-6, 8e-6, 4e-6});
+  for (int k = 0; k < kinds; ++k) {
+    v1::SuspendedCells* cells = s->add_cells();
+    v1::CellSpec* c = cells->mutable_cell();
+    c->set_radius_m(radius * (k == 0 ? 1.0 : 0.8));
+    c->mutable_material()->set_youngs_modulus_pa(
+        g.real({50.0, 100.0}));  // the lattice's Mach limit at 3 cells/R
+    c->mutable_material()->set_poisson_ratio(0.48);
+    c->set_target_vertex_count(g.integer({200, 250, 300}));
+    if (g.chance(0.5)) cells->set_viscosity_ratio(g.real({1.0, 0.05, 5.0}));
+    if (g.chance(0.2)) {
+      // One placed cell per kind, apart from the other kind's.
+      v1::CellPlacement* p = cells->add_placements();
+      p->set_x_m((1.5 + 2.5 * k) * radius);
+      p->set_y_m(4.0 * radius);
+      p->set_z_m(2.0 * radius);
+    } else if (k == 0 && g.chance(0.3)) {
+      cells->set_volume_fraction(0.05);
+    } else {
+      cells->set_count(1);
+    }
+  }
+  s->set_capillary_number(g.real({0.05, 0.1, 0.2}));
+  v1::SuspensionNumerics* n = s->mutable_numerics();
+  n->mutable_flow()->set_cells_per_radius(3.0);
+  n->mutable_flow()->set_max_strain(g.real({0.1, 0.2}));
+  if (g.set()) n->set_seed(static_cast<std::uint64_t>(g.integer({1, 2, 7})));
+  if (g.set()) n->set_marking_every_steps(g.integer({1, 5}));
+  if (g.set()) n->set_average_after_strain(g.real({0.0, 0.05}));
+}
+
 void fill_suspension(Gen& g, const MeshPool& pool, v1::SuspensionSpec* s) {
+  if (g.chance(0.15)) {
+    fill_runnable_suspension(g, s);
+    return;
+  }
   const int kinds = g.chance(0.03) ? 0 : g.chance(0.02) ? 65 : static_cast<int>(1 + g.below(2) + g.below(2));
   for (int k = 0; k < kinds; ++k) {
     v1::SuspendedCells* cells = s->add_cells();
@@ -540,7 +582,7 @@ TEST(CELLFLOW_FUZZ_SUITE, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField)
   const MeshPool pool;
   ASSERT_FALSE(pool.files.empty());
   const SceneRegistry registry;
-  std::map<std::string, long long> refused_by_field, outcomes, accepted_by_scene;
+  std::map<std::string, long long> refused_by_field, outcomes, accepted_by_scene, run_by_scene;
   std::vector<std::string> failed_examples;
   long long refused = 0, accepted = 0, runs = 0, cheap_seen = 0, failures = 0;
   const auto start = std::chrono::steady_clock::now();
@@ -580,6 +622,7 @@ TEST(CELLFLOW_FUZZ_SUITE, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField)
     const long long stride = std::max(1LL, count / kCheapPerSpec / std::max(1LL, max_runs));
     if (cheap_seen++ % stride != 0 || runs >= max_runs) continue;
     ++runs;
+    run_by_scene[std::string((*job)->scene())]++;
     const long parent_rss = rss_bytes();
     const ChildRun r = run_in_child(**job, kMaxRunSeconds);
     run_seconds += r.seconds;
@@ -621,6 +664,8 @@ TEST(CELLFLOW_FUZZ_SUITE, EveryAcceptedSpecIsRunnableAndEveryRefusalNamesAField)
       g_seed, count, first, refused, accepted, runs, seconds, run_seconds);
   std::printf("accepted by scene:");
   for (const auto& [k, v] : accepted_by_scene) std::printf(" %s %lld", k.c_str(), v);
+  std::printf("\nrun by scene:");
+  for (const auto& [k, v] : run_by_scene) std::printf(" %s %lld", k.c_str(), v);
   std::printf("\nrun outcomes:");
   for (const auto& [k, v] : outcomes) std::printf(" %s %lld", k.c_str(), v);
   std::printf("\ncheap accepted specs %lld; failed runs, first of them:\n", cheap_seen);

@@ -263,6 +263,27 @@ TEST(SuspensionRun, StopsAtTheTargetStandardError) {
               !(before.average_taylor_deformation_error < 0.05 * before.average_taylor_deformation));
 }
 
+// A second kind too stiff for the explicit update: the error names the kind
+// and the shared flow numerics that would cure it (the suspension has no
+// per-kind numerics).
+TEST(SuspensionRun, TooStiffSecondKindNamesTheSharedFlowNumerics) {
+  SuspensionParams p = collision_params();
+  SuspendedCellKind stiff = p.kinds[0];
+  stiff.cell.material.youngs_modulus_pa = 1e5;
+  stiff.placements.clear();
+  stiff.count = 1;
+  p.kinds[0].placements.resize(1);
+  p.kinds.push_back(stiff);
+  StatusOr<PlannedSuspension> planned = plan_suspension_run(p);
+  ASSERT_TRUE(planned.ok()) << planned.status().to_string();
+  const SuspensionResult r = run_suspension(*planned, {});
+  ASSERT_EQ(r.status.code(), StatusCode::kInvalidArgument) << r.status.to_string();
+  const std::string& m = r.status.message();
+  EXPECT_NE(m.find("kinds[1].cell (kind 1)"), std::string::npos) << m;
+  EXPECT_NE(m.find("numerics.flow.max_stiffness_ratio"), std::string::npos) << m;
+  EXPECT_EQ(m.find("kinds[1].numerics"), std::string::npos) << m;
+}
+
 TEST(SuspensionRun, RandomPlacementRunsAndStopsOnRequest) {
   SuspensionParams p = collision_params();
   p.kinds[0].placements.clear();

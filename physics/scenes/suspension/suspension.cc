@@ -403,10 +403,13 @@ SuspensionResult run_suspension(const PlannedSuspension& planned, const Suspensi
     const double ca = params.fluid_viscosity_pa_s * planned.setup().flow.shear_rate_per_s /
                       shear_modulus(params.kinds[k].cell.material);
     double ratio = 0.0;
-    if (Status st = check_flow_stiffness(flow_params(params, k), u, kind.body.body, mesh.positions_m, name,
+    // The numerics it names are the suspension's shared flow numerics
+    // (prefix + "numerics.flow."), not fields of the kind.
+    if (Status st = check_flow_stiffness(flow_params(params, k), u, kind.body.body, mesh.positions_m, prefix,
                                          ca, &ratio);
         !st.ok()) {
-      result.status = st;
+      result.status = Status(st.code(), name + "cell (kind " + std::to_string(k) +
+                                            "): " + suspension_names(st.message(), prefix));
       return result;
     }
     kind_meshes.push_back(mesh);

@@ -620,11 +620,45 @@ StatusOr<std::int64_t> insert_top_level_job(sqlite3* db, const std::string& owne
   return id;
 }
 
+// Inserts a queued child job (of a study, or a library simulation of a fit
+// when library_key is set) with its "submitted" event, under the caller's
+// transaction. `insert` is the prepared kInsertChildSql
+// (reused across a batch). Returns its id.
+constexpr const char* kInsertChildSql =
+    "INSERT INTO jobs (spec, state, memory_bytes, create_ms, owner, parent_id, child_index, library_key) "
+    "VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING id";
+
+StatusOr<std::int64_t> insert_child_job(sqlite3* db, Stmt& insert, const v1::JobSpec& spec,
+                                        std::int64_t memory_bytes, std::int64_t now_ms,
+                                        const std::string& owner, std::int64_t parent_id, int child_index,
+                                        const std::optional<std::string>& library_key,
+                                        const std::string& reason, const char* what) {
+  insert.reset();
+  insert.bind_blob(1, spec.SerializeAsString()).bind(2, static_cast<int>(v1::Job::QUEUED));
+  insert.bind(3, memory_bytes).bind(4, now_ms).bind(5, owner).bind(6, parent_id).bind(7, child_index);
+  if (library_key) {
+    insert.bind(8, *library_key);
+  } else {
+    insert.bind_null(8);
+  }
+  if (insert.step() != SQLITE_ROW) return sqlite_error(db, what);
+  const std::int64_t child_id = insert.int64(0);
+  insert.step();
+  insert.reset();
+  auto seq =
+      append_event_row(db, child_id, 0, state_event(v1::Job::QUEUED, reason, ""), std::nullopt, now_ms);
+  if (!seq.ok()) return seq.status();
+  return child_id;
+}
+
 }  // namespace
 
-StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::string& request_id,
-                                         std::int64_t estimated_memory_bytes, std::int64_t now_ms,
-                                         const std::string& owner) {
+// One write transaction for a top-level submit: an earlier job of this
+// owner's request_id is returned as it is (idempotent resubmit); otherwise
+// `insert` queues the job (and its children) and returns its id, and the
+// job is loaded and committed.
+StatusOr<Store::Submitted> Store::submit_once(const std::string& request_id, const std::string& owner,
+                                              const std::function<StatusOr<std::int64_t>()>& insert) {
   std::lock_guard lock(write_mutex_);
   WriteTransaction txn(writer_);
   if (!txn.status().ok()) return txn.status();
@@ -633,144 +667,113 @@ StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::str
   } else if (earlier->has_value()) {
     return Submitted{std::move(**earlier), true};
   }
-  auto inserted = insert_top_level_job(writer_, owner, request_id, spec, estimated_memory_bytes, now_ms, 0,
-                                       false, "insert job");
-  if (!inserted.ok()) return inserted.status();
-  const std::int64_t id = *inserted;
-  auto seq =
-      append_event_row(writer_, id, 0, state_event(v1::Job::QUEUED, "submitted", ""), std::nullopt, now_ms);
-  if (!seq.ok()) return seq.status();
-  auto job = load_job(writer_, id);
+  auto id = insert();
+  if (!id.ok()) return id.status();
+  auto job = load_job(writer_, *id);
   if (!job.ok()) return job.status();
   if (Status s = txn.commit(); !s.ok()) return s;
   return Submitted{std::move(*job), false};
+}
+
+StatusOr<Store::Submitted> Store::submit(const v1::JobSpec& spec, const std::string& request_id,
+                                         std::int64_t estimated_memory_bytes, std::int64_t now_ms,
+                                         const std::string& owner) {
+  return submit_once(request_id, owner, [&]() -> StatusOr<std::int64_t> {
+    auto id = insert_top_level_job(writer_, owner, request_id, spec, estimated_memory_bytes, now_ms, 0, false,
+                                   "insert job");
+    if (!id.ok()) return id.status();
+    auto seq = append_event_row(writer_, *id, 0, state_event(v1::Job::QUEUED, "submitted", ""), std::nullopt,
+                                now_ms);
+    if (!seq.ok()) return seq.status();
+    return *id;
+  });
 }
 
 StatusOr<Store::Submitted> Store::submit_study(const v1::JobSpec& study,
                                                const std::vector<StudyChild>& children,
                                                const std::string& request_id, std::int64_t now_ms,
                                                const std::string& owner) {
-  std::lock_guard lock(write_mutex_);
-  WriteTransaction txn(writer_);
-  if (!txn.status().ok()) return txn.status();
-  if (auto earlier = job_of_request(writer_, owner, request_id); !earlier.ok()) {
-    return earlier.status();
-  } else if (earlier->has_value()) {
-    return Submitted{std::move(**earlier), true};
-  }
-  if (children.empty()) return Status(StatusCode::kInvalidArgument, "study: no children");
-  std::int64_t memory = 0;
-  for (const StudyChild& child : children) memory = std::max(memory, child.memory_bytes);
-  auto inserted = insert_top_level_job(writer_, owner, request_id, study, memory, now_ms,
-                                       static_cast<int>(children.size()), false, "insert study");
-  if (!inserted.ok()) return inserted.status();
-  const std::int64_t study_id = *inserted;
-  auto seq = append_event_row(
-      writer_, study_id, 0,
-      state_event(v1::Job::QUEUED, "submitted (" + std::to_string(children.size()) + " children)", ""),
-      std::nullopt, now_ms);
-  if (!seq.ok()) return seq.status();
-  // Children: ordinary jobs of the same owner, queued in point order.
-  Stmt insert(writer_,
-              "INSERT INTO jobs (spec, state, memory_bytes, create_ms, owner, parent_id, child_index) "
-              "VALUES (?, ?, ?, ?, ?, ?, ?) RETURNING id");
-  for (std::size_t i = 0; i < children.size(); ++i) {
-    insert.reset();
-    insert.bind_blob(1, children[i].spec.SerializeAsString()).bind(2, static_cast<int>(v1::Job::QUEUED));
-    insert.bind(3, children[i].memory_bytes).bind(4, now_ms).bind(5, owner).bind(6, study_id);
-    insert.bind(7, static_cast<int>(i));
-    if (insert.step() != SQLITE_ROW) return sqlite_error(writer_, "insert child");
-    const std::int64_t child_id = insert.int64(0);
-    insert.step();
-    auto child_seq =
-        append_event_row(writer_, child_id, 0,
-                         state_event(v1::Job::QUEUED, "submitted (study " + job_name(study_id) + ")", ""),
-                         std::nullopt, now_ms);
-    if (!child_seq.ok()) return child_seq.status();
-  }
-  insert.reset();
-  auto job = load_job(writer_, study_id);
-  if (!job.ok()) return job.status();
-  if (Status s = txn.commit(); !s.ok()) return s;
-  return Submitted{std::move(*job), false};
+  return submit_once(request_id, owner, [&]() -> StatusOr<std::int64_t> {
+    if (children.empty()) return Status(StatusCode::kInvalidArgument, "study: no children");
+    std::int64_t memory = 0;
+    for (const StudyChild& child : children) memory = std::max(memory, child.memory_bytes);
+    auto study_id = insert_top_level_job(writer_, owner, request_id, study, memory, now_ms,
+                                         static_cast<int>(children.size()), false, "insert study");
+    if (!study_id.ok()) return study_id.status();
+    auto seq = append_event_row(
+        writer_, *study_id, 0,
+        state_event(v1::Job::QUEUED, "submitted (" + std::to_string(children.size()) + " children)", ""),
+        std::nullopt, now_ms);
+    if (!seq.ok()) return seq.status();
+    // Children: ordinary jobs of the same owner, queued in point order.
+    Stmt insert(writer_, kInsertChildSql);
+    const std::string reason = "submitted (study " + job_name(*study_id) + ")";
+    for (std::size_t i = 0; i < children.size(); ++i) {
+      auto child =
+          insert_child_job(writer_, insert, children[i].spec, children[i].memory_bytes, now_ms, owner,
+                           *study_id, static_cast<int>(i), std::nullopt, reason, "insert child");
+      if (!child.ok()) return child.status();
+    }
+    return *study_id;
+  });
 }
 
 StatusOr<Store::Submitted> Store::submit_fit(const v1::JobSpec& fit, std::int64_t memory_bytes,
                                              const std::vector<LibraryChild>& needs,
                                              const std::string& request_id, std::int64_t now_ms,
                                              const std::string& owner) {
-  std::lock_guard lock(write_mutex_);
-  WriteTransaction txn(writer_);
-  if (!txn.status().ok()) return txn.status();
-  if (auto earlier = job_of_request(writer_, owner, request_id); !earlier.ok()) {
-    return earlier.status();
-  } else if (earlier->has_value()) {
-    return Submitted{std::move(**earlier), true};
-  }
-  // child_count is set below, once the children that need queueing are known.
-  auto inserted =
-      insert_top_level_job(writer_, owner, request_id, fit, memory_bytes, now_ms, 0, true, "insert fit");
-  if (!inserted.ok()) return inserted.status();
-  const std::int64_t fit_id = *inserted;
-  // Under the write lock, so that of two fits submitted together only the
-  // first queues a curve and the second waits for that child.
-  Stmt need(writer_,
-            "INSERT OR IGNORE INTO library_needs (fit_id, key, base, w, needed) VALUES (?, ?, ?, ?, ?)");
-  // Not queued: a curve held or being built, or one the fit will not read
-  // (a stored curve of larger w ends before the deformation the fit needs:
-  // it searches w only above that one).
-  Stmt known(writer_,
-             "SELECT EXISTS (SELECT 1 FROM library_curves WHERE key = ?1) OR EXISTS (SELECT 1 FROM jobs "
-             "WHERE library_key = ?1 AND state IN (1, 2)) OR EXISTS (SELECT 1 FROM library_curves WHERE "
-             "base = ?2 AND w > ?3 AND end_deformation < ?4 * (1 - 1e-12))");
-  Stmt child(writer_,
-             "INSERT INTO jobs (spec, state, memory_bytes, create_ms, owner, parent_id, child_index, "
-             "library_key) VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING id");
-  int queued = 0;
-  for (const LibraryChild& c : needs) {
-    need.reset();
-    need.bind(1, fit_id)
-        .bind(2, c.key)
-        .bind(3, c.base)
-        .bind(4, c.mooney_rivlin_w)
-        .bind(5, c.needed_deformation);
-    if (need.step() != SQLITE_DONE) return sqlite_error(writer_, "library need");
-    known.reset();
-    known.bind(1, c.key).bind(2, c.base).bind(3, c.mooney_rivlin_w).bind(4, c.needed_deformation);
-    if (known.step() != SQLITE_ROW) return sqlite_error(writer_, "library lookup");
-    const bool have = known.int64(0) != 0;
-    known.reset();
-    if (have) continue;
-    child.reset();
-    child.bind_blob(1, c.spec.SerializeAsString()).bind(2, static_cast<int>(v1::Job::QUEUED));
-    child.bind(3, c.memory_bytes).bind(4, now_ms).bind(5, owner).bind(6, fit_id).bind(7, queued);
-    child.bind(8, c.key);
-    if (child.step() != SQLITE_ROW) return sqlite_error(writer_, "insert library child");
-    const std::int64_t child_id = child.int64(0);
-    child.step();
-    child.reset();
-    auto seq = append_event_row(
-        writer_, child_id, 0,
-        state_event(v1::Job::QUEUED, "submitted (library simulation of fit " + job_name(fit_id) + ")", ""),
-        std::nullopt, now_ms);
+  return submit_once(request_id, owner, [&]() -> StatusOr<std::int64_t> {
+    // child_count is set below, once the children that need queueing are known.
+    auto inserted =
+        insert_top_level_job(writer_, owner, request_id, fit, memory_bytes, now_ms, 0, true, "insert fit");
+    if (!inserted.ok()) return inserted.status();
+    const std::int64_t fit_id = *inserted;
+    // Under the write lock, so that of two fits submitted together only the
+    // first queues a curve and the second waits for that child.
+    Stmt need(writer_,
+              "INSERT OR IGNORE INTO library_needs (fit_id, key, base, w, needed) VALUES (?, ?, ?, ?, ?)");
+    // Not queued: a curve held or being built, or one the fit will not read
+    // (a stored curve of larger w ends before the deformation the fit needs:
+    // it searches w only above that one).
+    Stmt known(writer_,
+               "SELECT EXISTS (SELECT 1 FROM library_curves WHERE key = ?1) OR EXISTS (SELECT 1 FROM jobs "
+               "WHERE library_key = ?1 AND state IN (1, 2)) OR EXISTS (SELECT 1 FROM library_curves WHERE "
+               "base = ?2 AND w > ?3 AND end_deformation < ?4 * (1 - 1e-12))");
+    Stmt child(writer_, kInsertChildSql);
+    const std::string reason = "submitted (library simulation of fit " + job_name(fit_id) + ")";
+    int queued = 0;
+    for (const LibraryChild& c : needs) {
+      need.reset();
+      need.bind(1, fit_id)
+          .bind(2, c.key)
+          .bind(3, c.base)
+          .bind(4, c.mooney_rivlin_w)
+          .bind(5, c.needed_deformation);
+      if (need.step() != SQLITE_DONE) return sqlite_error(writer_, "library need");
+      known.reset();
+      known.bind(1, c.key).bind(2, c.base).bind(3, c.mooney_rivlin_w).bind(4, c.needed_deformation);
+      if (known.step() != SQLITE_ROW) return sqlite_error(writer_, "library lookup");
+      const bool have = known.int64(0) != 0;
+      known.reset();
+      if (have) continue;
+      auto child_id = insert_child_job(writer_, child, c.spec, c.memory_bytes, now_ms, owner, fit_id, queued,
+                                       c.key, reason, "insert library child");
+      if (!child_id.ok()) return child_id.status();
+      ++queued;
+    }
+    {
+      Stmt count(writer_, "UPDATE jobs SET child_count = ? WHERE id = ?");
+      count.bind(1, queued).bind(2, fit_id);
+      if (count.step() != SQLITE_DONE) return sqlite_error(writer_, "fit children");
+    }
+    const std::string fit_reason =
+        queued > 0 ? "submitted (" + std::to_string(queued) + " library simulations queued as child jobs)"
+                   : "submitted";
+    auto seq = append_event_row(writer_, fit_id, 0, state_event(v1::Job::QUEUED, fit_reason, ""),
+                                std::nullopt, now_ms);
     if (!seq.ok()) return seq.status();
-    ++queued;
-  }
-  {
-    Stmt count(writer_, "UPDATE jobs SET child_count = ? WHERE id = ?");
-    count.bind(1, queued).bind(2, fit_id);
-    if (count.step() != SQLITE_DONE) return sqlite_error(writer_, "fit children");
-  }
-  const std::string reason =
-      queued > 0 ? "submitted (" + std::to_string(queued) + " library simulations queued as child jobs)"
-                 : "submitted";
-  auto seq =
-      append_event_row(writer_, fit_id, 0, state_event(v1::Job::QUEUED, reason, ""), std::nullopt, now_ms);
-  if (!seq.ok()) return seq.status();
-  auto job = load_job(writer_, fit_id);
-  if (!job.ok()) return job.status();
-  if (Status s = txn.commit(); !s.ok()) return s;
-  return Submitted{std::move(*job), false};
+    return fit_id;
+  });
 }
 
 StatusOr<Store::FitLibrary> Store::library_curves_for(std::int64_t fit_id, std::int64_t max_bytes) {

@@ -269,6 +269,11 @@ class Store {
  private:
   explicit Store(StoreOptions options);
   Status migrate();
+  // The shared frame of submit, submit_study and submit_fit: the write
+  // transaction, the idempotent request_id lookup, then `insert` (returns
+  // the new top-level job's id), the load and the commit.
+  StatusOr<Submitted> submit_once(const std::string& request_id, const std::string& owner,
+                                  const std::function<StatusOr<std::int64_t>()>& insert);
   // A reader connection from the pool; returned by the guard's destructor.
   class Reader;
   Reader reader();

@@ -45,9 +45,11 @@ void fill_phase_table(const FluidParams& p, detail::PhaseTable<T>& table) {
   }
 }
 
-// One row loop per SIMD level. The kernel is memory-bound with AVX2/AVX-512
-// but compute-bound with the baseline SSE2 (bench/lb), and the default build
-// does not use -march=native, so the level is picked at run time. Built with
+// One row loop per SIMD level. Even with AVX-512 the arithmetic, not the
+// memory, limits one core on an idle machine (bench_lb's in-cache rows reach
+// about 0.6 of the in-place update bandwidth), the baseline SSE2 far more so,
+// and the default build does not use -march=native, so the level is picked
+// at run time. Built with
 // -ffp-contract=off: no FMA contraction, every level gives the same bits.
 template <class T, bool kForce, bool kVel, bool kPh, Phase kPhase>
 void rows_generic(const StepContext<T>& c, std::int64_t r0, std::int64_t r1) {

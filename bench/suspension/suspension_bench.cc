@@ -84,6 +84,9 @@ int step_bench(std::map<std::string, std::string>& args) {
   std::printf("contact + marking: %.1f %% of the step (lambda %g, marking every %d steps)\n",
               100.0 * (r.contact_s + r.marking_s) / total, p.kinds[0].viscosity_ratio,
               p.numerics.marking_every_steps);
+  std::printf("contact list builds %lld, marking updates %lld, full markings %lld (start: %d)\n",
+              static_cast<long long>(r.contact_list_builds), static_cast<long long>(r.marking_updates),
+              static_cast<long long>(r.marking_full), s.cell_count);
   std::printf("CPU time of the process / wall time: see `time`; the split is of wall time\n");
   return 0;
 }

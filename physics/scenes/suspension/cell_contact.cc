@@ -21,7 +21,7 @@ double repulsion_energy(double gap, double range, double strength) {
 }
 
 RepulsionSearch::RepulsionSearch(const RepulsionParams& params) : params_(params) {
-  params_.skin = std::max(params_.skin, 0.0);
+  if (!(params_.skin >= 0.0)) params_.skin = 0.0;  // also NaN
   const double cutoff = params_.range + params_.skin;
   for (int d = 0; d < 3; ++d) {
     bins_[d] = std::max(1, static_cast<int>(std::floor(params_.box[d] / cutoff)));

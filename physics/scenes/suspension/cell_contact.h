@@ -38,7 +38,8 @@ struct RepulsionParams {
   double wall_offset = 0.0;
   bool walls = true;
   // Verlet skin (lattice units, >= 0): pairs within range + skin are listed;
-  // the list is rebuilt when a vertex moved more than skin / 2.
+  // the list is rebuilt when a vertex moved more than skin / 2. Below 0 (or
+  // NaN) counts as 0.
   double skin = 0.5;
 };
 

@@ -1,6 +1,7 @@
 // Inside/outside marking of lattice nodes (see marking.h): the exact
-// winding-number test, the band update by the sign of the distance to the
-// nearest surface triangle, and the phase field written into the fluid.
+// winding-number test, the full marking, the update of the nodes the surface
+// swept by the sign of the distance to the nearest surface triangle, and the
+// phase field written into the fluid.
 #include "physics/marking/marking.h"
 
 #include <algorithm>
@@ -20,6 +21,12 @@ constexpr double kPi = 3.14159265358979323846;
 // Band nodes closer than this to the surface (lattice units) are decided by
 // the exact test: there the sign of a rounded distance is not trusted.
 constexpr double kAmbiguousDistance = 1e-6;
+// Added to the largest vertex displacement when choosing the nodes to
+// re-mark (lattice units; positions are O(100), their rounding O(1e-14)).
+constexpr double kDisplacementSlack = 1e-9;
+// Nodes at least this far from the surface (lattice units) share the mark of
+// a far neighbour in the full marking (see mark_cell_full).
+constexpr double kFarDistance = 0.5;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -127,31 +134,72 @@ void mark_cell_exact(NodeMarking& m, const coupling::ImmersedCells& cells, std::
 }
 
 void mark_cell_exact_untimed(NodeMarking& m, const coupling::ImmersedCells& cells, std::size_t c) {
-  const coupling::ImmersedCell& cell = cells[c];
+  m.mark_cell_full(cells[c], c);
+}
+
+// The marks of the winding-number test without evaluating it at every node:
+// the nodes within kFarDistance of the surface get theirs as in the fast
+// update (sign test, winding number where ambiguous). Two neighbouring nodes
+// both farther than that lie in one ball free of surface (every point of the
+// segment between them is within 1/2 of one end), so they share their
+// winding number; a far node takes the mark of a far neighbour already
+// decided (i-1, j-1 or k-1), and the winding number is evaluated once for
+// each region of far nodes so connected.
+void NodeMarking::mark_cell_full(const coupling::ImmersedCell& cell, std::size_t c) {
   const std::int32_t id = static_cast<std::int32_t>(c);
-  for (std::int32_t& o : m.owner_)
+  for (std::int32_t& o : owner_)
     if (o == id) o = -1;
   const Bounds b = vertex_bounds(cell.positions_lattice);
   int first[3], last[3];
   for (int d = 0; d < 3; ++d) node_range(b.lo[d], b.hi[d], 0.0, first[d], last[d]);
-  if (!m.periodic_y_) {
+  if (!periodic_y_) {
     first[1] = std::max(first[1], 0);
-    last[1] = std::min(last[1], m.ny_ - 1);
+    last[1] = std::min(last[1], ny_ - 1);
   }
-  const std::span<const std::int32_t> tris = m.triangles_[c];
+  collect_near_surface(cell, c, kFarDistance + kDisplacementSlack);
+  const int bx = last[0] - first[0] + 1, by = last[1] - first[1] + 1, bz = last[2] - first[2] + 1;
+  const std::span<const std::int32_t> tris = triangles_[c];
   std::int64_t tests = 0;
-  for (int k = first[2]; k <= last[2]; ++k) {
-    for (int j = first[1]; j <= last[1]; ++j) {
-      for (int i = first[0]; i <= last[0]; ++i) {
-        const double p[3] = {i + 0.5, j + 0.5, k + 0.5};
-        ++tests;
-        if (inside_exact(cell, tris, p)) set_owner(m.owner_, i, j, k, m.nx_, m.ny_, m.nz_, id, true);
+  if (bx > 0 && by > 0 && bz > 0) {
+    // Per box node: 0 outside, 1 inside (far nodes decided), 2 not decided or near.
+    far_mark_.assign(static_cast<std::size_t>(bx) * by * static_cast<std::size_t>(bz), 2);
+    for (int k = first[2]; k <= last[2]; ++k) {
+      const std::size_t wk = static_cast<std::size_t>(wrap_index(k, nz_));
+      for (int j = first[1]; j <= last[1]; ++j) {
+        const std::size_t wjk =
+            static_cast<std::size_t>(nx_) * (static_cast<std::size_t>(wrap_index(j, ny_)) + ny_ * wk);
+        const std::size_t row =
+            static_cast<std::size_t>(bx) *
+            (static_cast<std::size_t>(j - first[1]) + static_cast<std::size_t>(by) * (k - first[2]));
+        for (int i = first[0]; i <= last[0]; ++i) {
+          const std::size_t node = static_cast<std::size_t>(wrap_index(i, nx_)) + wjk;
+          const std::int32_t at = near_slot_[node];
+          bool inside;
+          if (at >= 0) {
+            inside = near_[static_cast<std::size_t>(at)].side < 0;
+          } else {
+            const std::size_t here = row + static_cast<std::size_t>(i - first[0]);
+            std::uint8_t mark = 2;
+            if (i > first[0]) mark = far_mark_[here - 1];
+            if (mark == 2 && j > first[1]) mark = far_mark_[here - static_cast<std::size_t>(bx)];
+            if (mark == 2 && k > first[2]) mark = far_mark_[here - static_cast<std::size_t>(bx) * by];
+            if (mark == 2) {
+              const double p[3] = {i + 0.5, j + 0.5, k + 0.5};
+              mark = inside_exact(cell, tris, p) ? 1 : 0;
+              ++tests;
+            }
+            far_mark_[here] = mark;
+            inside = mark == 1;
+          }
+          if (inside) owner_[node] = id;
+        }
       }
     }
   }
-  m.marked_positions_[c] = cell.positions_lattice;
-  m.stats_.full_markings += 1;
-  m.stats_.exact_node_tests += tests;
+  for (const NearNode& nn : near_) near_slot_[nn.node] = -1;
+  marked_positions_[c] = cell.positions_lattice;
+  stats_.full_markings += 1;
+  stats_.exact_node_tests += tests;
 }
 
 StatusOr<NodeMarking> make_marking(const coupling::ImmersedCells& cells, const lb::Fluid& fluid,
@@ -189,6 +237,95 @@ StatusOr<NodeMarking> make_marking(const coupling::ImmersedCells& cells, const l
   return m;
 }
 
+void NodeMarking::collect_near_surface(const coupling::ImmersedCell& cell, std::size_t c, double pad) {
+  NodeMarking& m = *this;
+  if (m.near_slot_.size() != m.owner_.size()) m.near_slot_.assign(m.owner_.size(), -1);
+  const std::vector<double>& x = cell.positions_lattice;
+  const std::vector<std::int32_t>& tris = m.triangles_[c];
+  std::vector<NearNode>& near = m.near_;
+  std::vector<std::int32_t>& slot = m.near_slot_;
+  near.clear();
+  for (std::size_t t = 0; t + 2 < tris.size(); t += 3) {
+    double p[9];
+    for (int v = 0; v < 3; ++v)
+      for (int d = 0; d < 3; ++d) p[3 * v + d] = x[3 * static_cast<std::size_t>(tris[t + v]) + d];
+    const double e1[3] = {p[3] - p[0], p[4] - p[1], p[5] - p[2]};
+    const double e2[3] = {p[6] - p[0], p[7] - p[1], p[8] - p[2]};
+    const double normal[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                              e1[0] * e2[1] - e1[1] * e2[0]};
+    const double area2 = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+    // The distance to the triangle's plane bounds the distance to the
+    // triangle from below: a node whose plane distance exceeds its best
+    // distance so far (by more than rounding) cannot take this triangle.
+    const double inv_area2 = area2 > 0.0 ? 1.0 / area2 : 0.0;
+    int lo[3], hi[3];
+    for (int d = 0; d < 3; ++d) {
+      const double tlo = std::min({p[d], p[3 + d], p[6 + d]}), thi = std::max({p[d], p[3 + d], p[6 + d]});
+      node_range(tlo, thi, pad, lo[d], hi[d]);
+    }
+    if (!m.periodic_y_) {
+      lo[1] = std::max(lo[1], 0);
+      hi[1] = std::min(hi[1], m.ny_ - 1);
+    }
+    for (int k = lo[2]; k <= hi[2]; ++k) {
+      const std::size_t wk = static_cast<std::size_t>(wrap_index(k, m.nz_));
+      for (int j = lo[1]; j <= hi[1]; ++j) {
+        const std::size_t wjk =
+            static_cast<std::size_t>(m.nx_) * (static_cast<std::size_t>(wrap_index(j, m.ny_)) + m.ny_ * wk);
+        for (int i = lo[0]; i <= hi[0]; ++i) {
+          const double q[3] = {i + 0.5, j + 0.5, k + 0.5};
+          const std::size_t node = static_cast<std::size_t>(wrap_index(i, m.nx_)) + wjk;
+          const std::int32_t at = slot[node];
+          const double best = at < 0 ? pad : near[static_cast<std::size_t>(at)].distance;
+          if (area2 > 0.0) {
+            const double plane =
+                std::abs((q[0] - p[0]) * normal[0] + (q[1] - p[1]) * normal[1] + (q[2] - p[2]) * normal[2]) *
+                inv_area2;
+            if (plane - 1e-9 >= best) continue;
+          }
+          const contact::TriangleDistance td = contact::triangle_distance(q, p);
+          if (!(td.distance_m < best)) continue;
+          std::int8_t side;
+          if (td.feature != contact::ClosestFeature::kFace || td.distance_m < kAmbiguousDistance) {
+            side = 0;
+          } else {
+            const double s = td.normal[0] * normal[0] + td.normal[1] * normal[1] + td.normal[2] * normal[2];
+            side = s > 0.0 ? 1 : -1;
+          }
+          if (at < 0) {
+            slot[node] = static_cast<std::int32_t>(near.size());
+            near.push_back({{i, j, k}, node, td.distance_m, side});
+          } else {
+            near[static_cast<std::size_t>(at)].distance = td.distance_m;
+            near[static_cast<std::size_t>(at)].side = side;
+          }
+        }
+      }
+    }
+  }
+  // The side of every near node: the sign test, or the exact test where it is ambiguous.
+  for (NearNode& nn : near) {
+    if (nn.side == 0) {
+      const double q[3] = {nn.ijk[0] + 0.5, nn.ijk[1] + 0.5, nn.ijk[2] + 0.5};
+      nn.side = inside_exact(cell, tris, q) ? -1 : 1;
+      m.stats_.exact_node_tests += 1;
+    }
+  }
+}
+
+void NodeMarking::remark_near_surface(const coupling::ImmersedCell& cell, std::size_t c, double pad) {
+  collect_near_surface(cell, c, pad);
+  const std::int32_t id = static_cast<std::int32_t>(c);
+  for (const NearNode& nn : near_) {
+    near_slot_[nn.node] = -1;
+    if (nn.side < 0)
+      owner_[nn.node] = id;
+    else if (owner_[nn.node] == id)
+      owner_[nn.node] = -1;
+  }
+  stats_.band_nodes += static_cast<std::int64_t>(near_.size());
+}
+
 void update_marking(NodeMarking& m, const coupling::ImmersedCells& cells) {
   const auto t0 = std::chrono::steady_clock::now();
   m.stats_.updates += 1;
@@ -198,9 +335,12 @@ void update_marking(NodeMarking& m, const coupling::ImmersedCells& cells) {
   for (std::size_t c = 0; c < cells.size(); ++c) {
     const coupling::ImmersedCell& cell = cells[c];
     const std::vector<double>& x = cell.positions_lattice;
-    const std::vector<double>& x0 = m.marked_positions_[c];
+    std::vector<double>& x0 = m.marked_positions_[c];
     // Every point of a triangle moves by at most its vertices' largest
-    // displacement; a node that changed side lies that close to the new surface.
+    // displacement (it is their convex combination). Along the straight
+    // motion from the marked to the current positions the mark of a node
+    // changes only where the surface passes through it, so a node that
+    // changed side lies within that displacement of the current surface.
     double max_move2 = 0.0;
     for (std::size_t i = 0; i + 2 < x.size(); i += 3) {
       const double dx = x[i] - x0[i], dy = x[i + 1] - x0[i + 1], dz = x[i + 2] - x0[i + 2];
@@ -210,87 +350,18 @@ void update_marking(NodeMarking& m, const coupling::ImmersedCells& cells) {
       mark_cell_exact_untimed(m, cells, c);
       continue;
     }
-    // Nearest surface point of every node in the band, triangle by triangle.
-    const Bounds b = vertex_bounds(x);
-    int first[3], last[3];
-    for (int d = 0; d < 3; ++d) node_range(b.lo[d], b.hi[d], band, first[d], last[d]);
-    if (!m.periodic_y_) {
-      first[1] = std::max(first[1], 0);
-      last[1] = std::min(last[1], m.ny_ - 1);
-    }
-    const int bx = last[0] - first[0] + 1, by = last[1] - first[1] + 1, bz = last[2] - first[2] + 1;
-    if (bx <= 0 || by <= 0 || bz <= 0) continue;
-    const std::size_t box_nodes = static_cast<std::size_t>(bx) * by * static_cast<std::size_t>(bz);
-    std::vector<double> best(box_nodes, band);
-    // +1 outside, -1 inside, 0 ambiguous (edge or vertex nearest, or on the surface)
-    std::vector<std::int8_t> side(box_nodes, 2);
-    const std::vector<std::int32_t>& tris = m.triangles_[c];
-    for (std::size_t t = 0; t + 2 < tris.size(); t += 3) {
-      double p[9];
-      for (int v = 0; v < 3; ++v)
-        for (int d = 0; d < 3; ++d) p[3 * v + d] = x[3 * static_cast<std::size_t>(tris[t + v]) + d];
-      const double e1[3] = {p[3] - p[0], p[4] - p[1], p[5] - p[2]};
-      const double e2[3] = {p[6] - p[0], p[7] - p[1], p[8] - p[2]};
-      const double normal[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                                e1[0] * e2[1] - e1[1] * e2[0]};
-      int lo[3], hi[3];
-      for (int d = 0; d < 3; ++d) {
-        const double tlo = std::min({p[d], p[3 + d], p[6 + d]}), thi = std::max({p[d], p[3 + d], p[6 + d]});
-        node_range(tlo, thi, band, lo[d], hi[d]);
-        lo[d] = std::max(lo[d], first[d]);
-        hi[d] = std::min(hi[d], last[d]);
-      }
-      for (int k = lo[2]; k <= hi[2]; ++k) {
-        for (int j = lo[1]; j <= hi[1]; ++j) {
-          for (int i = lo[0]; i <= hi[0]; ++i) {
-            const double q[3] = {i + 0.5, j + 0.5, k + 0.5};
-            const contact::TriangleDistance td = contact::triangle_distance(q, p);
-            const std::size_t at =
-                static_cast<std::size_t>(i - first[0]) +
-                static_cast<std::size_t>(bx) *
-                    (static_cast<std::size_t>(j - first[1]) + static_cast<std::size_t>(by) * (k - first[2]));
-            if (!(td.distance_m < best[at])) continue;
-            best[at] = td.distance_m;
-            if (td.feature != contact::ClosestFeature::kFace || td.distance_m < kAmbiguousDistance) {
-              side[at] = 0;
-            } else {
-              const double s = td.normal[0] * normal[0] + td.normal[1] * normal[1] + td.normal[2] * normal[2];
-              side[at] = s > 0.0 ? 1 : -1;
-            }
-          }
-        }
-      }
-    }
-    const std::int32_t id = static_cast<std::int32_t>(c);
-    for (int k = first[2]; k <= last[2]; ++k) {
-      for (int j = first[1]; j <= last[1]; ++j) {
-        for (int i = first[0]; i <= last[0]; ++i) {
-          const std::size_t at =
-              static_cast<std::size_t>(i - first[0]) +
-              static_cast<std::size_t>(bx) *
-                  (static_cast<std::size_t>(j - first[1]) + static_cast<std::size_t>(by) * (k - first[2]));
-          if (side[at] == 2) continue;  // deeper than the band: keeps its mark
-          bool inside;
-          if (side[at] == 0) {
-            const double q[3] = {i + 0.5, j + 0.5, k + 0.5};
-            inside = inside_exact(cell, tris, q);
-            m.stats_.exact_node_tests += 1;
-          } else {
-            inside = side[at] < 0;
-          }
-          m.stats_.band_nodes += 1;
-          set_owner(m.owner_, i, j, k, m.nx_, m.ny_, m.nz_, id, inside);
-        }
-      }
-    }
-    m.marked_positions_[c] = x;
+    if (max_move2 == 0.0) continue;  // nothing moved: every mark holds
+    // The slack covers the rounding of the distances (lattice units).
+    m.remark_near_surface(cell, c, std::sqrt(max_move2) + kDisplacementSlack);
+    std::copy(x.begin(), x.end(), x0.begin());
   }
   m.stats_.seconds += seconds_since(t0);
 }
 
 Status apply_phases(NodeMarking& m, std::span<const std::uint8_t> phase_of_cell, lb::Fluid& fluid) {
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<std::uint8_t> phases(m.owner_.size(), 0);
+  std::vector<std::uint8_t>& phases = m.phases_;
+  phases.assign(m.owner_.size(), 0);
   for (std::size_t n = 0; n < m.owner_.size(); ++n) {
     const std::int32_t o = m.owner_[n];
     if (o >= 0 && static_cast<std::size_t>(o) < phase_of_cell.size()) phases[n] = phase_of_cell[o];

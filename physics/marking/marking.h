@@ -9,15 +9,24 @@
 //    around the node, sum of signed solid angles / 4 pi (van Oosterom and
 //    Strackee 1983), inside when > 1/2. Robust for any closed, consistently
 //    oriented surface, also for nodes on a vertex's ray.
-//  - fast (update_marking): only nodes within `band_lattice` of a cell's
-//    surface are re-marked, by the sign of (x - q) . n with q the nearest
-//    surface point and n the normal of its triangle (Lehmann et al. 2020);
-//    when q lies on an edge or vertex, where that sign is ambiguous, the
-//    exact test decides. Nodes deeper than the band keep their mark. That is
-//    exact as long as no surface point moved farther than the band since the
-//    last update; update_marking measures that displacement and falls back to
-//    the exact test of the whole cell when it is exceeded, and every
-//    `full_every_updates`-th update is exact anyway (0: never).
+//  - fast (update_marking): a node changes side only where the surface swept
+//    through it, so only the nodes within the cell's largest vertex
+//    displacement since its last marking (a thin shell around the surface)
+//    are re-marked, by the sign of (x - q) . n with q the nearest surface
+//    point and n the normal of its triangle (Lehmann et al. 2020); when q
+//    lies on an edge or vertex, where that sign is ambiguous, the exact test
+//    decides. A triangle is skipped for a node whose distance to its plane
+//    exceeds the best so far. All other nodes keep their mark. When a cell
+//    moved farther than `band_lattice` the update falls back to the full
+//    marking of that cell, and every `full_every_updates`-th update is a full
+//    one anyway (0: never).
+//  - full (make_marking, the fallback): the same marks as the winding number
+//    at every node of the cell's bounding box, with the winding number
+//    evaluated only once per connected region of nodes farther than 1/2
+//    from the surface (they share it) and the sign test near the surface.
+//  The sign test equals the winding number for a closed, consistently
+//  oriented surface that does not intersect itself (tests/marking compares
+//  both with the winding number at every node).
 //
 // Periodic in x and z (and y when the fluid is): vertex positions may lie
 // outside [0, n) before the wrap, as coupling keeps them; a cell must be
@@ -45,10 +54,10 @@
 namespace cellflow::marking {
 
 struct MarkingParams {
-  // Half-width of the band around each surface that the fast update re-marks,
-  // lattice units, in [0.5, 8]. Must exceed the surface displacement between
-  // two updates (u_max x marking_every_steps; a larger one makes the update
-  // exact for that cell); the cost grows as the band's volume.
+  // The largest vertex displacement since a cell's last marking that the
+  // fast update handles (lattice units, in [0.5, 8]); a cell that moved
+  // farther is marked in full. The fast update's cost grows with the actual
+  // displacement, not with this bound. Also widens the periodic-box check.
   double band_lattice = 1.0;
   // Every n-th update_marking is the exact test of every cell; 0: only the
   // fallback when a cell moved beyond the band. In [0, 1e9].
@@ -60,11 +69,12 @@ Status validate(const MarkingParams& params);
 
 // Counters of the work done, for tests and benchmarks.
 struct MarkingStats {
-  std::int64_t updates = 0;           // update_marking calls
-  std::int64_t full_markings = 0;     // exact markings of a whole cell (make_marking counts each cell)
-  std::int64_t band_nodes = 0;        // nodes re-marked by the fast test
-  std::int64_t exact_node_tests = 0;  // winding-number evaluations (full markings and ambiguous band nodes)
-  double seconds = 0.0;               // wall time in make_marking / update_marking / apply_phases
+  std::int64_t updates = 0;        // update_marking calls
+  std::int64_t full_markings = 0;  // exact markings of a whole cell (make_marking counts each cell)
+  std::int64_t band_nodes = 0;     // nodes re-marked by the fast update (the shell swept by the surface)
+  std::int64_t exact_node_tests =
+      0;                 // winding-number evaluations (far regions of full markings, ambiguous nodes)
+  double seconds = 0.0;  // wall time in make_marking / update_marking / apply_phases
 };
 
 class NodeMarking {
@@ -100,6 +110,27 @@ class NodeMarking {
   std::vector<std::vector<double>> marked_positions_;
   std::vector<std::vector<std::int32_t>> triangles_;
   MarkingStats stats_;
+  // Scratch of the fast update (kept between calls: no allocation per step):
+  // the nodes near one cell's surface with their best distance and side, and
+  // per lattice node its index in near_ (-1 when not near).
+  struct NearNode {
+    int ijk[3];        // unwrapped node indices
+    std::size_t node;  // wrapped lattice index
+    double distance;   // to the nearest surface triangle found so far
+    std::int8_t side;  // +1 outside, -1 inside, 0 ambiguous (the exact test decides)
+  };
+  std::vector<NearNode> near_;
+  std::vector<std::int32_t> near_slot_;
+  // Re-marks every node within `pad` of cell c's current surface by the
+  // nearest-triangle sign test (the exact test where that is ambiguous).
+  void remark_near_surface(const coupling::ImmersedCell& cell, std::size_t c, double pad);
+  // Fills near_ (and near_slot_) with the nodes within `pad` of cell c's
+  // surface and their sides; the caller clears near_slot_ again.
+  void collect_near_surface(const coupling::ImmersedCell& cell, std::size_t c, double pad);
+  // The exact marking of cell c (winding number), see marking.cc.
+  void mark_cell_full(const coupling::ImmersedCell& cell, std::size_t c);
+  std::vector<std::uint8_t> far_mark_;  // scratch of mark_cell_full, one cell's box
+  std::vector<std::uint8_t> phases_;    // scratch of apply_phases, one per node
 };
 
 // Exact marking of every cell on the fluid's lattice (its size; periodic in
@@ -108,15 +139,15 @@ class NodeMarking {
 StatusOr<NodeMarking> make_marking(const coupling::ImmersedCells& cells, const lb::Fluid& fluid,
                                    const MarkingParams& params);
 
-// The fast band update of every cell after its vertices moved (see above).
+// The fast update of every cell after its vertices moved (see above).
 // The cells must be those of make_marking, in the same order.
 void update_marking(NodeMarking& marking, const coupling::ImmersedCells& cells);
 
 // (Internal: mark_cell_exact without the timing.)
 void mark_cell_exact_untimed(NodeMarking& marking, const coupling::ImmersedCells& cells, std::size_t c);
 
-// Exact re-marking of cell c: its old marks are cleared, every node of its
-// bounding box is tested.
+// Full re-marking of cell c: its old marks are cleared, every node of its
+// bounding box gets the winding-number mark (see above).
 void mark_cell_exact(NodeMarking& marking, const coupling::ImmersedCells& cells, std::size_t c);
 
 // Exact test of one point (lattice units, box coordinates; the periodic

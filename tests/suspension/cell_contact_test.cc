@@ -146,5 +146,46 @@ TEST(Repulsion, CellListFindsTheBruteForcePairs) {
   }
 }
 
+// The Verlet list kept across calls while the vertices drift finds what a
+// search rebuilt at every call (skin 0) finds, at every call: the same pairs,
+// energy and forces; it is rebuilt only now and then.
+TEST(Repulsion, VerletListKeptAcrossCallsFindsWhatAFreshSearchFinds) {
+  Cloud c = random_cloud(5, 80, 7);
+  RepulsionParams p = params_10_12_8();
+  p.skin = 0.4;
+  RepulsionSearch kept(p);
+  p.skin = 0.0;
+  RepulsionSearch fresh(p);
+  std::mt19937_64 rng(11);
+  auto uniform = [&] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+  const int calls = 200;
+  int pairs_seen = 0;
+  for (int call = 0; call < calls; ++call) {
+    // Every vertex drifts by up to 0.02 a component and call (some faster).
+    for (auto& x : c.x)
+      for (std::size_t i = 0; i < x.size(); ++i) x[i] += (uniform() - 0.5) * (i % 7 == 0 ? 0.12 : 0.04);
+    const RepulsionReport a = evaluate(kept, c);
+    const std::vector<std::vector<double>> fa = c.f;
+    const RepulsionReport b = evaluate(fresh, c);
+    ASSERT_EQ(a.vertex_pairs, b.vertex_pairs) << call;
+    ASSERT_EQ(a.contact_pairs, b.contact_pairs) << call;
+    ASSERT_EQ(a.wall_vertices, b.wall_vertices) << call;
+    ASSERT_NEAR(a.energy, b.energy, 1e-12 * (1 + b.energy)) << call;
+    ASSERT_EQ(a.min_gap, b.min_gap) << call;
+    for (std::size_t k = 0; k < fa.size(); ++k)
+      for (std::size_t i = 0; i < fa[k].size(); ++i) ASSERT_NEAR(fa[k][i], c.f[k][i], 1e-12) << call;
+    pairs_seen += a.vertex_pairs;
+  }
+  EXPECT_GT(pairs_seen, 10 * calls);
+  EXPECT_EQ(fresh.builds(), calls);
+  EXPECT_GT(kept.builds(), 1);
+  EXPECT_LT(kept.builds(), calls / 3);
+  // A different vertex set rebuilds at once.
+  c.surface[0].pop_back();
+  const long long before = kept.builds();
+  evaluate(kept, c);
+  EXPECT_EQ(kept.builds(), before + 1);
+}
+
 }  // namespace
 }  // namespace cellflow::contact_repulsion

@@ -12,11 +12,15 @@
 // conserved: the spread forces of a pair cancel in the fluid's total
 // momentum); the wall force along the wall normal.
 //
-// Search: the surface vertices of all cells are binned into a cell list of
-// bins at least r_c wide over the box (periodic in x and z; counting sort,
-// linear in the vertex count), and each vertex looks at the 27 bins around
-// its own: the cost grows linearly with the number of vertices at a fixed
-// density.
+// Search: a Verlet list. The surface vertices of all cells are binned into a
+// cell list of bins at least r_c + skin wide over the box (periodic in x and
+// z; counting sort, linear in the vertex count), and each vertex looks at the
+// 27 bins around its own for vertices of other cells within r_c + skin. The
+// list is kept until a vertex has moved more than skin / 2 since it was
+// built (then every pair now within r_c is still in it); in between, a call
+// costs a pass over the vertices and the listed pairs. Both grow linearly
+// with the number of vertices at a fixed density. skin = 0 rebuilds at every
+// call.
 #pragma once
 
 #include <cstddef>
@@ -33,6 +37,10 @@ struct RepulsionParams {
   // The wall planes the gap is measured from: y = wall_offset and y = H - wall_offset.
   double wall_offset = 0.0;
   bool walls = true;
+  // Verlet skin (lattice units, >= 0): pairs within range + skin are listed;
+  // the list is rebuilt when a vertex moved more than skin / 2. Below 0 (or
+  // NaN) counts as 0.
+  double skin = 0.5;
 };
 
 // The force magnitude F(d) and energy E(d) of the law above (0 beyond range).
@@ -56,25 +64,37 @@ struct RepulsionReport {
       0.0;  // smallest vertex-vertex distance between different cells seen in range (range if none)
 };
 
-// Adds the repulsion forces to every cell's forces. Keeps its bins between
-// calls (no allocation after the first at a fixed vertex count).
+// Adds the repulsion forces to every cell's forces. Keeps its bins and the
+// pair list between calls (no allocation after the first at a fixed vertex
+// count, except when the list grows). A change of the cells or of their
+// surface vertex lists rebuilds the list.
 class RepulsionSearch {
  public:
   explicit RepulsionSearch(const RepulsionParams& params);
   RepulsionReport add_forces(std::span<const ContactCell> cells);
   const RepulsionParams& params() const { return params_; }
+  // The next add_forces rebuilds the list (benchmarks of the search itself).
+  void invalidate() { valid_ = false; }
+  // How many times the list was built.
+  long long builds() const { return builds_; }
 
  private:
+  void build_list();
   RepulsionParams params_;
   int bins_[3] = {1, 1, 1};
   double bin_size_[3] = {1, 1, 1};
-  std::vector<int> bin_start_;              // counting sort offsets, bins + 1
-  std::vector<int> bin_of_;                 // per flattened vertex
-  std::vector<int> fill_;                   // counting sort cursors
-  std::vector<int> sorted_;                 // flattened vertex indices in bin order
-  std::vector<std::pair<int, int>> flat_;   // (cell, vertex) in input order
-  std::vector<double> wrapped_;             // wrapped positions, 3 per flattened vertex
+  std::vector<int> bin_start_;            // counting sort offsets, bins + 1
+  std::vector<int> bin_of_;               // per flattened vertex
+  std::vector<int> fill_;                 // counting sort cursors
+  std::vector<int> sorted_;               // flattened vertex indices in bin order
+  std::vector<int> cell_of_, vertex_of_;  // (cell, vertex) of each flattened vertex, input order
+  std::vector<double> wrapped_;           // wrapped positions, 3 per flattened vertex
+  std::vector<double> built_at_;          // positions (as given) at the last build
+  std::vector<int> pair_start_;           // per flattened vertex i: its listed j > i, CSR
+  std::vector<int> pair_j_;
   std::vector<std::pair<int, int>> pairs_;  // touching cell pairs of one call
+  bool valid_ = false;
+  long long builds_ = 0;
 };
 
 }  // namespace cellflow::contact_repulsion

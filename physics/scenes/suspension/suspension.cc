@@ -266,6 +266,7 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
     }
     const contact_repulsion::RepulsionReport contact = search.add_forces(contact_cells);
     run.last_contact_pairs = contact.contact_pairs;
+    result.contact_list_builds = search.builds();
     const auto t2 = Clock::now();
     result.contact_s += std::chrono::duration<double>(t2 - t1).count();
 
@@ -318,6 +319,8 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
         return;
       }
       result.marking_s += seconds_since(tm);
+      result.marking_updates = run.marking->stats().updates;
+      result.marking_full = run.marking->stats().full_markings;
     }
     const bool sample_step = step % sample_steps == 0;
     if (sample_step) {

@@ -188,6 +188,9 @@ struct SuspensionResult {
   // contact search and forces, marking, observables.
   double lattice_s = 0.0, elastic_s = 0.0, coupling_s = 0.0, contact_s = 0.0, marking_s = 0.0,
          observables_s = 0.0;
+  // Work counters: builds of the contact pair list (cell_contact.h), marking
+  // updates and full markings of a cell (the start counts each cell).
+  std::int64_t contact_list_builds = 0, marking_updates = 0, marking_full = 0;
 };
 
 SuspensionResult run_suspension(const PlannedSuspension& planned, const SuspensionCallbacks& callbacks = {});

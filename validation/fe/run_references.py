@@ -596,13 +596,14 @@ LEVELS3D = {0: 3, 1: 4, 2: 6, 3: 8}  # elements per block edge of the 3-D octant
 
 
 def build3d(case, level, kfac=KFAC, ninc=NINC, imperfection=1e-3, eltype="C3D20R", contact="s2s",
-            amp_p=2.0, model="eighth", imperfection3=1e-3):
+            amp_p=2.0, model="eighth", imperfection3=1e-3, imperfection4=0.0):
     """Eighth-sphere deck of a plates case; imperfection eta: x -> x (1 + eta), y -> y (1 - eta)
     (a cos 2theta ovalisation of the initial sphere, which the symmetry admits).
     model "quarter": x >= 0, z >= 0 (symmetry planes x = 0 and z = 0 only), which also admits
     sin(m theta) for odd m (and cos(m theta) for even m); its extra imperfection: the in-plane
     position scaled by 1 + imperfection3 sin 3theta; u_y = 0 at the centre removes the free
-    sliding along y."""
+    sliding along y.  imperfection4: the in-plane position scaled by 1 + imperfection4 cos 4theta
+    (a 4-fold equator ripple, the mode cellflow's departed state shows)."""
     cfg = CASES[case]
     n = LEVELS3D[level]
     R, E, w = cfg["R"], cfg["E"], cfg["w"]
@@ -641,6 +642,8 @@ def build3d(case, level, kfac=KFAC, ninc=NINC, imperfection=1e-3, eltype="C3D20R
         s3 = 1.0
         if model == "quarter" and (x or y):
             s3 += imperfection3 * math.sin(3 * math.atan2(y, x))
+        if imperfection4 and (x or y):
+            s3 += imperfection4 * math.cos(4 * math.atan2(y, x))
         coords[i - 1] = (x * (1 + imperfection) * s3, y * (1 - imperfection) * s3, z)
 
     mat = moduli(E, NU, w)
@@ -697,7 +700,7 @@ def build3d(case, level, kfac=KFAC, ninc=NINC, imperfection=1e-3, eltype="C3D20R
     info = dict(nodes=len(m.nodes), cell_nodes=len(ncell), cell_elements=ne, n=n, K=K, travel=travel,
                 imperfection=imperfection, slave_faces=len(scell), amp_p=amp_p, ninc=ninc,
                 model=model, copies=8 if model != "quarter" else 4, plate_factor=4 if model != "quarter" else 2,
-                imperfection3=imperfection3 if model == "quarter" else 0.0)
+                imperfection3=imperfection3 if model == "quarter" else 0.0, imperfection4=imperfection4)
     return "\n".join(L) + "\n", info, coords, m.elems["CELL"]
 
 def amp(t, p=2.0):
@@ -929,8 +932,13 @@ def analyse3d(case, name, info, coords, elems, level):
     # shapes at the frames nearest to SHAPE_EPS
     frd = os.path.join(wd, "job.frd")
     blocks = read_frd_disp3(frd) if os.path.exists(frd) else []
-    eq = sorted(set(n for el in elems for n in el
-                    if abs(coords[n - 1][2]) < 1e-9 and abs(math.hypot(coords[n - 1][0], coords[n - 1][1]) - R) < 1e-2 * R))
+    # equator nodes: on the mid plane and on the sphere (the cos 4theta imperfection taken out)
+    e4 = info.get("imperfection4", 0.0)
+
+    def on_equator(p):
+        r = math.hypot(p[0], p[1])
+        return abs(p[2]) < 1e-9 and r > 0 and abs(r / (1 + e4 * math.cos(4 * math.atan2(p[1], p[0]))) - R) < 1e-2 * R
+    eq = sorted(set(n for el in elems for n in el if on_equator(coords[n - 1])))
     shapes = []
     for e in SHAPE_EPS:
         if not blocks:
@@ -1144,6 +1152,8 @@ def three_d(a):
                 kw["ninc"] = a.increments
             if a.model != "eighth":
                 kw["model"] = a.model
+            if a.imperfection4:
+                kw["imperfection4"] = a.imperfection4
             if a.analyse:
                 name = "%s_3d_L%d%s" % (case, lv, a.tag)
                 _, info, coords, elems = build3d(case, lv, **kw)
@@ -1176,6 +1186,7 @@ def main():
     ap.add_argument("--three-d", action="store_true",
                     help="the full 3-D check instead (eighth sphere of C3D20R, plates cases; levels %s)" % LEVELS3D)
     ap.add_argument("--imperfection", type=float, default=1e-3, help="3-D: initial cos 2theta ovalisation eta")
+    ap.add_argument("--imperfection4", type=float, default=0.0, help="3-D: initial cos 4theta equator ripple")
     ap.add_argument("--ramp-power", type=float, default=2.0, help="3-D: plate travel ~ t^p (2: dense at small deformation)")
     ap.add_argument("--increments", type=int, default=NINC, help="3-D: the largest increment is 1/N of the step")
     ap.add_argument("--model", default="eighth", choices=["eighth", "quarter"],

@@ -425,6 +425,284 @@ def build(case, level, kfac=KFAC, eltype=ELTYPE, ninc=NINC, contact=None):
     return "\n".join(L) + "\n", info
 
 
+
+# ----------------------------------------------------------------------------
+# full 3-D check of the plates cases (issue 11 item 3): eighth sphere of C3D20R
+# ----------------------------------------------------------------------------
+#
+# x, y, z >= 0 with symmetry planes x = 0, y = 0 (u_x = 0, u_y = 0) and the mid
+# plane z = 0 (u_z = 0); the plate moves down delta/2 onto the pole.  The
+# symmetry admits the displacement fields even in x, even in y and even in z:
+# azimuthal modes cos(2 k theta) (k = 0, 1, 2, ...: axisymmetric, cos 2theta,
+# cos 4theta, ...), symmetric about the mid plane.  It forbids cos(odd theta),
+# sin(m theta) and anything antisymmetric about the mid plane (tilting,
+# sliding, a fold that differs above and below).
+
+# 20-node hex (ccx/Abaqus order): local coordinates of nodes 1..20
+HEX20 = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1),
+         (0, -1, -1), (1, 0, -1), (0, 1, -1), (-1, 0, -1), (0, -1, 1), (1, 0, 1), (0, 1, 1), (-1, 0, 1),
+         (-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+# faces (corner nodes, 0-based) S1..S6 of C3D20 / C3D8
+HEX_FACES = [(0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 3), (3, 7, 4, 0)]
+HEX8 = HEX20[:8]
+
+
+class Mesh3:
+    def __init__(self, tol=1e-7):
+        self.nodes = []
+        self.key = {}
+        self.elems = {}
+        self.tol = tol
+
+    def node(self, p):
+        p = tuple(0.0 if abs(v) < 1e-9 else v for v in p)
+        k = tuple(round(v / self.tol) for v in p)
+        for d0 in (0, -1, 1):
+            for d1 in (0, -1, 1):
+                for d2 in (0, -1, 1):
+                    kk = (k[0] + d0, k[1] + d1, k[2] + d2)
+                    if kk in self.key:
+                        return self.key[kk]
+        self.nodes.append(p)
+        self.key[k] = len(self.nodes)
+        return len(self.nodes)
+
+    def block(self, name, X, ni, nj, nk, quadratic=True):
+        """Structured block: X(p, q, r) maps [0,1]^3 into space; ni x nj x nk hexes."""
+        h = 2 if quadratic else 1
+        local = HEX20 if quadratic else HEX8
+        grid = {}
+        for i in range(h * ni + 1):
+            for j in range(h * nj + 1):
+                for k in range(h * nk + 1):
+                    if quadratic and (i % 2) + (j % 2) + (k % 2) > 1:
+                        continue
+                    grid[(i, j, k)] = self.node(X(i / (h * ni), j / (h * nj), k / (h * nk)))
+        els = self.elems.setdefault(name, [])
+        for a in range(ni):
+            for b in range(nj):
+                for c in range(nk):
+                    ids = [grid[(h * a + (1 + x) * h // 2, h * b + (1 + y) * h // 2, h * c + (1 + z) * h // 2)]
+                           for (x, y, z) in local]
+                    els.append(self.orient(ids, quadratic))
+
+    def orient(self, ids, quadratic):
+        p = [self.nodes[n - 1] for n in ids[:8]]
+        e1 = [p[1][d] - p[0][d] for d in range(3)]
+        e2 = [p[3][d] - p[0][d] for d in range(3)]
+        e3 = [p[4][d] - p[0][d] for d in range(3)]
+        det = (e1[0] * (e2[1] * e3[2] - e2[2] * e3[1]) - e1[1] * (e2[0] * e3[2] - e2[2] * e3[0])
+               + e1[2] * (e2[0] * e3[1] - e2[1] * e3[0]))
+        if det > 0:
+            return ids
+        # mirror the local xi direction: node of (x, y, z) <- node of (-x, y, z)
+        local = HEX20 if quadratic else HEX8
+        pos = {c: n for c, n in zip(local, ids)}
+        return [pos[(-x, y, z)] for (x, y, z) in local]
+
+
+def sphere_octant(mesh, name, R, n, pole_beta=0.5, surf_p=1.4, c=0.4, alpha=0.59, cs=0.569, sy=1.0):
+    """O-grid octant of a ball: a core (rounded cube) and three blocks (+x, +y, +z) out to the
+    sphere, n elements per block edge (4 n^3 hexes).  Inner surface of the blocks:
+    (1 - alpha) c e + alpha cs e'/|e'| (e on the cube face, e' its equiangular direction): 0.5 R on
+    the axes, 0.62 R at the cube corner.  Surface parameters graded toward the symmetry planes
+    with (1 - beta) x + beta x^2 (the poles are at a = b = 0 of the +z block).  sy = -1: the
+    mirror octant y <= 0."""
+    c, cs = c * R, cs * R
+    G = blend0(pole_beta)
+    g = toward1(surf_p)
+
+    def T(e):
+        d = [math.tan(math.pi / 4 * v) for v in e]
+        s = math.sqrt(sum(v * v for v in d))
+        return [v / s for v in d]
+
+    def p_in(e):
+        d = T(e)
+        return [(1 - alpha) * c * e[k] + alpha * cs * d[k] for k in range(3)]
+
+    def core(u, v, w):
+        e = [G(u), G(v), G(w)]
+        m = max(e)
+        if m <= 0.0:
+            return (0.0, 0.0, 0.0)
+        q = p_in([x / m for x in e])
+        return (m * q[0], sy * m * q[1], m * q[2])
+
+    mesh.block(name, core, n, n, n)
+    for f in range(3):
+        def X(s, t, rho, f=f):
+            e = [0.0, 0.0, 0.0]
+            others = [k for k in range(3) if k != f]
+            e[f] = 1.0
+            e[others[0]], e[others[1]] = G(s), G(t)
+            pi, d = p_in(e), T(e)
+            gr = g(rho)
+            return tuple((sy if k == 1 else 1.0) * ((1 - gr) * pi[k] + gr * R * d[k]) for k in range(3))
+        mesh.block(name, X, n, n, n)
+
+
+def hex_shape20(x, y, z):
+    """20-node serendipity shape functions and their local derivatives."""
+    N, dN = [], []
+    for (a, b, c) in HEX20:
+        if a != 0 and b != 0 and c != 0:
+            f = 0.125 * (1 + a * x) * (1 + b * y) * (1 + c * z) * (a * x + b * y + c * z - 2)
+            dx = 0.125 * a * (1 + b * y) * (1 + c * z) * (2 * a * x + b * y + c * z - 1)
+            dy = 0.125 * b * (1 + a * x) * (1 + c * z) * (a * x + 2 * b * y + c * z - 1)
+            dz = 0.125 * c * (1 + a * x) * (1 + b * y) * (a * x + b * y + 2 * c * z - 1)
+        elif a == 0:
+            f = 0.25 * (1 - x * x) * (1 + b * y) * (1 + c * z)
+            dx, dy, dz = -0.5 * x * (1 + b * y) * (1 + c * z), 0.25 * b * (1 - x * x) * (1 + c * z), 0.25 * c * (1 - x * x) * (1 + b * y)
+        elif b == 0:
+            f = 0.25 * (1 - y * y) * (1 + a * x) * (1 + c * z)
+            dx, dy, dz = 0.25 * a * (1 - y * y) * (1 + c * z), -0.5 * y * (1 + a * x) * (1 + c * z), 0.25 * c * (1 - y * y) * (1 + a * x)
+        else:
+            f = 0.25 * (1 - z * z) * (1 + a * x) * (1 + b * y)
+            dx, dy, dz = 0.25 * a * (1 - z * z) * (1 + b * y), 0.25 * b * (1 - z * z) * (1 + a * x), -0.5 * z * (1 + a * x) * (1 + b * y)
+        N.append(f)
+        dN.append((dx, dy, dz))
+    return N, dN
+
+
+def octant_moments(coords, elems, copies=8):
+    """Volume and the second moments int x_i^2 dV of the full body (copies x the model, 3x3x3 Gauss),
+    coords: list of node positions, node id k at coords[k - 1]."""
+    gp = [(-math.sqrt(0.6), 5 / 9.0), (0.0, 8 / 9.0), (math.sqrt(0.6), 5 / 9.0)]
+    V, M = 0.0, [0.0, 0.0, 0.0]
+    cache = {}
+    for el in elems:
+        P = [coords[n - 1] for n in el]  # node ids are 1-based
+        for (x, wx) in gp:
+            for (y, wy) in gp:
+                for (z, wz) in gp:
+                    key = (x, y, z)
+                    if key not in cache:
+                        cache[key] = hex_shape20(x, y, z)
+                    N, dN = cache[key]
+                    Jm = [[sum(dN[a][j] * P[a][i] for a in range(20)) for j in range(3)] for i in range(3)]
+                    det = (Jm[0][0] * (Jm[1][1] * Jm[2][2] - Jm[1][2] * Jm[2][1])
+                           - Jm[0][1] * (Jm[1][0] * Jm[2][2] - Jm[1][2] * Jm[2][0])
+                           + Jm[0][2] * (Jm[1][0] * Jm[2][1] - Jm[1][1] * Jm[2][0]))
+                    wgt = wx * wy * wz * det
+                    X = [sum(N[a] * P[a][i] for a in range(20)) for i in range(3)]
+                    V += wgt
+                    for i in range(3):
+                        M[i] += wgt * X[i] * X[i]
+    return copies * V, [copies * m for m in M]
+
+
+LEVELS3D = {0: 3, 1: 4, 2: 6, 3: 8}  # elements per block edge of the 3-D octant (4 n^3 hexes per octant)
+
+
+def build3d(case, level, kfac=KFAC, ninc=NINC, imperfection=1e-3, eltype="C3D20R", contact="s2s",
+            amp_p=2.0, model="eighth", imperfection3=1e-3, imperfection4=0.0):
+    """Eighth-sphere deck of a plates case; imperfection eta: x -> x (1 + eta), y -> y (1 - eta)
+    (a cos 2theta ovalisation of the initial sphere, which the symmetry admits).
+    model "quarter": x >= 0, z >= 0 (symmetry planes x = 0 and z = 0 only), which also admits
+    sin(m theta) for odd m (and cos(m theta) for even m); its extra imperfection: the in-plane
+    position scaled by 1 + imperfection3 sin 3theta; u_y = 0 at the centre removes the free
+    sliding along y.  imperfection4: the in-plane position scaled by 1 + imperfection4 cos 4theta
+    (a 4-fold equator ripple, the mode cellflow's departed state shows)."""
+    cfg = CASES[case]
+    n = LEVELS3D[level]
+    R, E, w = cfg["R"], cfg["E"], cfg["w"]
+    m = Mesh3()
+    sphere_octant(m, "CELL", R, n, pole_beta=cfg.get("pole_beta", 0.0))
+    if model == "quarter":
+        sphere_octant(m, "CELL", R, n, pole_beta=cfg.get("pole_beta", 0.0), sy=-1.0)
+    W, th, npl = 2.6 * R, 0.2 * R, 8
+    gp = toward0(1.5)
+    m.block("PLATE", lambda p, q, r: (W * gp(p), W * gp(q), R + th * r), npl, npl, 1, quadratic=False)
+    if model == "quarter":
+        m.block("PLATE", lambda p, q, r: (W * gp(p), -W * gp(q), R + th * r), npl, npl, 1, quadratic=False)
+    ncell = set(x for el in m.elems["CELL"] for x in el)
+
+    def cell_faces(pred):
+        out = []
+        for e, el in enumerate(m.elems["CELL"], 1):
+            for f, fc in enumerate(HEX_FACES, 1):
+                if all(pred(m.nodes[el[k] - 1]) for k in fc):
+                    out.append((e, f))
+        return out
+
+    on_sphere = lambda p: abs(math.sqrt(sum(v * v for v in p)) - R) < 1e-6 * R
+    scell = cell_faces(on_sphere)
+    ne = len(m.elems["CELL"])
+    mplate = []
+    for e, el in enumerate(m.elems["PLATE"], ne + 1):
+        for f, fc in enumerate(HEX_FACES, 1):
+            if all(abs(m.nodes[el[k] - 1][2] - R) < 1e-9 for k in fc):
+                mplate.append((e, f))
+    sym = {d: sorted(i for i in ncell if m.nodes[i - 1][d] == 0.0) for d in range(3)}
+    # imperfection of the cell nodes (the symmetry planes stay planes)
+    coords = list(m.nodes)
+    for i in ncell:
+        x, y, z = coords[i - 1]
+        s3 = 1.0
+        if model == "quarter" and (x or y):
+            s3 += imperfection3 * math.sin(3 * math.atan2(y, x))
+        if imperfection4 and (x or y):
+            s3 += imperfection4 * math.cos(4 * math.atan2(y, x))
+        coords[i - 1] = (x * (1 + imperfection) * s3, y * (1 - imperfection) * s3, z)
+
+    mat = moduli(E, NU, w)
+    K = kfac * E / R
+    travel = 0.5 * cfg["eps_max"] * 2 * R
+    L = ["** generated by validation/fe/run_references.py: 3-D case %s, level %d (n=%d), %s %s sphere, "
+         "K=%g Pa/um, imperfection %g (sin 3theta: %g)" % (case, level, n, eltype, model, K, imperfection,
+                                                        imperfection3 if model == "quarter" else 0.0),
+         "** units: um, Pa, pN.  E=%g Pa nu=%g w=%g: mu=%.6g kappa=%.6g" % (E, NU, w, mat["mu"], mat["kappa"]),
+         "*NODE, NSET=NALL"]
+    for i, p in enumerate(coords, 1):
+        L.append("%d, %.12g, %.12g, %.12g" % (i, p[0], p[1], p[2]))
+    L.append("*ELEMENT, TYPE=%s, ELSET=CELL" % eltype)
+    eid = 0
+    for el in m.elems["CELL"]:
+        eid += 1
+        L.append("%d, %s," % (eid, ", ".join(str(x) for x in el[:15])))
+        L.append(", ".join(str(x) for x in el[15:]))
+    L.append("*ELEMENT, TYPE=C3D8, ELSET=PLATE")
+    for el in m.elems["PLATE"]:
+        eid += 1
+        L.append("%d, %s" % (eid, ", ".join(str(x) for x in el)))
+
+    def nset(name, ids):
+        L.append("*NSET, NSET=%s" % name)
+        ids = list(ids)
+        for i in range(0, len(ids), 12):
+            L.append(", ".join(str(x) for x in ids[i:i + 12]) + ",")
+
+    nset("SYMX", sym[0]); nset("SYMZ", sym[2])
+    if model == "quarter":
+        nset("CENTRE", [i for i in ncell if m.nodes[i - 1] == (0.0, 0.0, 0.0)])
+    else:
+        nset("SYMY", sym[1])
+    nset("PLATEN", sorted(set(x for el in m.elems["PLATE"] for x in el)))
+    L.append("*SURFACE, NAME=SCELL, TYPE=ELEMENT")
+    L += ["%d, S%d" % ef for ef in scell]
+    L.append("*SURFACE, NAME=MPLATE, TYPE=ELEMENT")
+    L += ["%d, S%d" % ef for ef in mplate]
+    L += ["*MATERIAL, NAME=CELLMAT", "*HYPERELASTIC, MOONEY-RIVLIN",
+          "%.10g, %.10g, %.10g" % (mat["C10"], mat["C01"], mat["D1"]),
+          "*MATERIAL, NAME=RIGID", "*ELASTIC", "%.6g, 0.3" % (1e6 * E),
+          "*SOLID SECTION, ELSET=CELL, MATERIAL=CELLMAT", "*SOLID SECTION, ELSET=PLATE, MATERIAL=RIGID",
+          "*CONTACT PAIR, INTERACTION=SI, TYPE=%s" % ("NODE TO SURFACE" if contact == "n2s" else "SURFACE TO SURFACE"),
+          "SCELL, MPLATE",
+          "*SURFACE INTERACTION, NAME=SI", "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR", "%.8g" % K]
+    L += amplitude_lines("RAMP", p=amp_p)
+    L += ["*BOUNDARY", "SYMX, 1, 1, 0.", "SYMY, 2, 2, 0." if model != "quarter" else "CENTRE, 2, 2, 0.", "SYMZ, 3, 3, 0.", "PLATEN, 1, 2, 0.",
+          "*STEP, NLGEOM, INC=100000", "*STATIC", "%g, 1.0, %g, %g" % (1.0 / ninc, 1e-7, 1.0 / ninc),
+          "*BOUNDARY, AMPLITUDE=RAMP", "PLATEN, 3, 3, %.10g" % (-travel),
+          "*NODE PRINT, NSET=PLATEN, TOTALS=ONLY, FREQUENCY=1", "RF",
+          "*EL PRINT, ELSET=CELL, TOTALS=ONLY, FREQUENCY=1", "ELSE",
+          "*NODE FILE, FREQUENCY=1", "U", "*END STEP"]
+    info = dict(nodes=len(m.nodes), cell_nodes=len(ncell), cell_elements=ne, n=n, K=K, travel=travel,
+                imperfection=imperfection, slave_faces=len(scell), amp_p=amp_p, ninc=ninc,
+                model=model, copies=8 if model != "quarter" else 4, plate_factor=4 if model != "quarter" else 2,
+                imperfection3=imperfection3 if model == "quarter" else 0.0, imperfection4=imperfection4)
+    return "\n".join(L) + "\n", info, coords, m.elems["CELL"]
+
 def amp(t, p=2.0):
     return t ** p
 
@@ -511,6 +789,176 @@ def run_one(case, level, tag="", **kw):
                                                                    info["nodes"]), flush=True)
     return res
 
+
+
+def parse_energy(datfile):
+    """[(time, internal energy)] of the .dat TOTALS blocks (*EL PRINT ELSE)."""
+    out = []
+    lines = open(datfile).read().splitlines() if os.path.exists(datfile) else []
+    pat = re.compile(r"total internal energy for set (\S+) and time\s+(\S+)")
+    for i, ln in enumerate(lines):
+        mt = pat.search(ln)
+        if mt:
+            for j in range(i + 1, min(i + 5, len(lines))):
+                v = lines[j].split()
+                if len(v) == 1:
+                    out.append((float(mt.group(2)), float(v[0])))
+                    break
+    return out
+
+
+def read_frd_disp3(path):
+    """[(time, {node: (ux, uy, uz)})] of every DISP block of a ccx .frd."""
+    blocks, cur, t = [], None, None
+    for ln in open(path):
+        if ln.startswith("  100CL"):
+            t = float(ln[12:24])
+        elif ln.startswith(" -4  DISP"):
+            cur = {}
+            blocks.append((t, cur))
+        elif ln.startswith(" -3"):
+            cur = None
+        elif cur is not None and ln.startswith(" -1"):
+            cur[int(ln[3:13])] = (float(ln[13:25]), float(ln[25:37]), float(ln[37:49]))
+    return blocks
+
+
+def shape3d(coords, elems, disp, eq_nodes, copies=8):
+    """Deformed cell: equivalent-ellipsoid semi-axes (as cellflow's shape.cc: a_i^2 = 5/V int x_i^2 dV
+    for the principal axes, which are x, y, z by the symmetry), volume, the smallest J at the
+    2x2x2 (reduced-integration) points, and the cos 2theta / cos 4theta amplitudes of the deformed
+    equator radius r(theta) (least squares r = r0 + A2 cos 2theta + A4 cos 4theta)."""
+    cur = [tuple(p[k] + disp.get(i, (0, 0, 0))[k] for k in range(3)) for i, p in enumerate(coords, 1)]
+    V, M = octant_moments(cur, elems, copies)
+    axes = [math.sqrt(5 * m / V) for m in M]
+    g = 1 / math.sqrt(3)
+    jmin = 1e9
+    for el in elems:
+        P0 = [coords[n - 1] for n in el]
+        P1 = [cur[n - 1] for n in el]
+        for x in (-g, g):
+            for y in (-g, g):
+                for z in (-g, g):
+                    _, dN = hex_shape20(x, y, z)
+                    dets = []
+                    for P in (P0, P1):
+                        Jm = [[sum(dN[a][j] * P[a][i] for a in range(20)) for j in range(3)] for i in range(3)]
+                        dets.append(Jm[0][0] * (Jm[1][1] * Jm[2][2] - Jm[1][2] * Jm[2][1])
+                                    - Jm[0][1] * (Jm[1][0] * Jm[2][2] - Jm[1][2] * Jm[2][0])
+                                    + Jm[0][2] * (Jm[1][0] * Jm[2][1] - Jm[1][1] * Jm[2][0]))
+                    jmin = min(jmin, dets[1] / dets[0])
+    # least squares on the equator nodes
+    rows = []
+    for i in eq_nodes:
+        x, y, _ = cur[i - 1]
+        th = math.atan2(y, x)
+        basis = [1.0, math.cos(2 * th), math.cos(4 * th)]
+        if copies == 4:   # quarter model: the odd modes it admits
+            basis += [math.sin(th), math.sin(3 * th)]
+        rows.append(basis + [math.hypot(x, y)])
+    nb = len(rows[0]) - 1
+    A = [[sum(r[a] * r[b] for r in rows) for b in range(nb)] for a in range(nb)]
+    bvec = [sum(r[a] * r[nb] for r in rows) for a in range(nb)]
+    sol = solve_linear(A, bvec) + [0.0, 0.0]
+    return dict(volume=V, axes=axes, jmin=jmin, r0=sol[0], A2=sol[1], A4=sol[2], B1=sol[3], B3=sol[4])
+
+
+def solve_linear(A, b):
+    """Gauss-Jordan with partial pivoting (small dense systems)."""
+    n = len(b)
+    A = [row[:] + [bb] for row, bb in zip(A, b)]
+    for c in range(n):
+        p = max(range(c, n), key=lambda r: abs(A[r][c]))
+        A[c], A[p] = A[p], A[c]
+        for r in range(n):
+            if r != c:
+                f = A[r][c] / A[c][c]
+                A[r] = [A[r][k] - f * A[c][k] for k in range(n + 1)]
+    return [A[r][n] / A[r][r] for r in range(n)]
+
+
+SHAPE_EPS = [0.3, 0.5, 0.6, 0.64, 0.66, 0.68, 0.7, 0.72, 0.75, 0.78, 0.8]
+
+
+def run_one3d(case, level, tag="", **kw):
+    """One 3-D ccx run: deck, solve, curves/<case>_3d_L<level><tag>.csv (deformation, displacement,
+    force, elastic energy) and curves/<case>_3d_L<level><tag>_shape.csv."""
+    name = "%s_3d_L%d%s" % (case, level, tag)
+    deck, info, coords, elems = build3d(case, level, **kw)
+    os.makedirs(DECKS, exist_ok=True)
+    with open(os.path.join(DECKS, name + ".inp"), "w") as f:
+        f.write(deck)
+    wd = os.path.join(RUNS, name)
+    shutil.rmtree(wd, ignore_errors=True)
+    os.makedirs(wd)
+    with open(os.path.join(wd, "job.inp"), "w") as f:
+        f.write(deck)
+    env = dict(os.environ, OMP_NUM_THREADS="1", CCX_NPROC_EQUATION_SOLVER="1",
+               CCX_NPROC_RESULTS="1", CCX_NPROC_STIFFNESS="1")
+    t0 = time.time()
+    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    with open(os.path.join(wd, "ccx.log"), "w") as log:
+        rc = subprocess.call(["ccx", "-i", "job"], cwd=wd, stdout=log, stderr=subprocess.STDOUT, env=env)
+    dt = time.time() - t0
+    ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+    res = analyse3d(case, name, info, coords, elems, level)
+    logtxt = open(os.path.join(wd, "ccx.log")).read()
+    res.update(rc=rc, ok=rc == 0 and "Job finished" in logtxt and "*ERROR" not in logtxt, seconds=round(dt, 1),
+               cpu_seconds=round(cpu, 1), load_average=round(os.getloadavg()[0], 1), kw=kw)
+    print("%-32s ok=%s %.1fs (cpu %.1fs) points=%d reached=%.4g nodes=%d" % (
+        name, res["ok"], dt, cpu, res["points"], res["reached"], info["nodes"]), flush=True)
+    return res
+
+
+def analyse3d(case, name, info, coords, elems, level):
+    """Curves and shapes of a finished (or stopped) 3-D run from its .dat and .frd."""
+    wd = os.path.join(RUNS, name)
+    cfg = CASES[case]
+    R = cfg["R"]
+    tot = parse_totals(os.path.join(wd, "job.dat")).get("PLATEN", [])
+    energy = dict(parse_energy(os.path.join(wd, "job.dat")))
+    rows = []
+    for (t, fx, fy, fz) in tot:
+        u = info["travel"] * amp(t, info["amp_p"])
+        # the octant carries a quarter of the plate's contact and an eighth of the cell
+        rows.append((u / R, 2 * u * 1e-6, info["plate_factor"] * abs(fz) * 1e-12,
+                     info["copies"] * energy.get(t, float("nan")) * 1e-18))
+    os.makedirs(CURVES, exist_ok=True)
+    with open(os.path.join(CURVES, name + ".csv"), "w") as f:
+        f.write("deformation,displacement_m,force_n,elastic_energy_j\n")
+        for r in rows:
+            f.write("%.8g,%.8g,%.8g,%.8g\n" % r)
+    # shapes at the frames nearest to SHAPE_EPS
+    frd = os.path.join(wd, "job.frd")
+    blocks = read_frd_disp3(frd) if os.path.exists(frd) else []
+    # equator nodes: on the mid plane and on the sphere (the cos 4theta imperfection taken out)
+    e4 = info.get("imperfection4", 0.0)
+
+    def on_equator(p):
+        r = math.hypot(p[0], p[1])
+        return abs(p[2]) < 1e-9 and r > 0 and abs(r / (1 + e4 * math.cos(4 * math.atan2(p[1], p[0]))) - R) < 1e-2 * R
+    eq = sorted(set(n for el in elems for n in el if on_equator(coords[n - 1])))
+    shapes = []
+    for e in SHAPE_EPS:
+        if not blocks:
+            break
+        t, d = min(blocks, key=lambda b: abs(info["travel"] * amp(b[0], info["amp_p"]) / R - e))
+        eps = info["travel"] * amp(t, info["amp_p"]) / R
+        if abs(eps - e) > 0.01:
+            continue
+        s = shape3d(coords, elems, d, eq, info["copies"])
+        shapes.append(dict(deformation=eps, **s))
+    with open(os.path.join(CURVES, name + "_shape.csv"), "w") as f:
+        f.write("deformation,a_x_m,a_y_m,a_z_m,volume_ratio,min_J,equator_r0_m,equator_cos2_m,equator_cos4_m,"
+                "equator_sin1_m,equator_sin3_m\n")
+        V0 = 4.0 / 3.0 * math.pi * R ** 3
+        for s in shapes:
+            f.write("%.6g,%.8g,%.8g,%.8g,%.6f,%.5f,%.8g,%.5g,%.5g,%.5g,%.5g\n" % (
+                s["deformation"], s["axes"][0] * 1e-6, s["axes"][1] * 1e-6, s["axes"][2] * 1e-6, s["volume"] / V0,
+                s["jmin"], s["r0"] * 1e-6, s["A2"] * 1e-6, s["A4"] * 1e-6, s["B1"] * 1e-6, s["B3"] * 1e-6))
+    return dict(run=name, case=case, level=level, points=len(rows), reached=rows[-1][0] if rows else 0.0,
+                info=info, shapes=shapes)
 
 def read_curve(name):
     p = os.path.join(CURVES, name + ".csv")
@@ -684,6 +1132,43 @@ def report(cases, levels, allres):
     return "\n".join(out) + "\n"
 
 
+def three_d(a):
+    """--three-d: run (or with --analyse re-read) the 3-D plates runs; results.json key runs3d
+    (re-read just before writing: two runs may go at the same time)."""
+    resfile = os.path.join(HERE, "results.json")
+    cases = a.case or ["plates_w0.25"]
+    for case in cases:
+        for lv in a.levels:
+            kw = {}
+            if a.imperfection != 1e-3:
+                kw["imperfection"] = a.imperfection
+            if a.kfac != KFAC:
+                kw["kfac"] = a.kfac
+            if a.contact:
+                kw["contact"] = a.contact
+            if a.ramp_power != 2.0:
+                kw["amp_p"] = a.ramp_power
+            if a.increments != NINC:
+                kw["ninc"] = a.increments
+            if a.model != "eighth":
+                kw["model"] = a.model
+            if a.imperfection4:
+                kw["imperfection4"] = a.imperfection4
+            if a.analyse:
+                name = "%s_3d_L%d%s" % (case, lv, a.tag)
+                _, info, coords, elems = build3d(case, lv, **kw)
+                r = analyse3d(case, name, info, coords, elems, lv)
+                old = json.load(open(resfile)).get("runs3d", {}).get(name, {})
+                r = dict(old, **r)
+            else:
+                if shutil.which("ccx") is None:
+                    sys.exit("ccx not found: run validation/fe/install-fe-deps.sh")
+                r = run_one3d(case, lv, tag=a.tag, **kw)
+            allres = json.load(open(resfile))
+            allres.setdefault("runs3d", {})[r["run"]] = r
+            json.dump(allres, open(resfile, "w"), indent=1, sort_keys=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--case", nargs="*", default=None, help="default: all cases (and the material check)")
@@ -691,13 +1176,22 @@ def main():
     ap.add_argument("--kfac", type=float, default=KFAC)
     ap.add_argument("--eltype", default=ELTYPE)
     ap.add_argument("--tag", default="")
-    ap.add_argument("--contact", default=CONTACT)
+    ap.add_argument("--contact", default=None, help="2-D: n2s (default), s2s, s2s_rev; 3-D: s2s (default) or n2s")
     ap.add_argument("--no-reference", action="store_true", help="do not copy the finest level to curves/<case>.csv")
     ap.add_argument("--matcheck", action="store_true", help="only the one-element material mapping check")
     ap.add_argument("--list", action="store_true")
     ap.add_argument("--studies", action="store_true",
                     help="also run the penalty and element studies (tagged runs, see README)")
     ap.add_argument("--report", action="store_true", help="only rewrite convergence.md from the curves")
+    ap.add_argument("--three-d", action="store_true",
+                    help="the full 3-D check instead (eighth sphere of C3D20R, plates cases; levels %s)" % LEVELS3D)
+    ap.add_argument("--imperfection", type=float, default=1e-3, help="3-D: initial cos 2theta ovalisation eta")
+    ap.add_argument("--imperfection4", type=float, default=0.0, help="3-D: initial cos 4theta equator ripple")
+    ap.add_argument("--ramp-power", type=float, default=2.0, help="3-D: plate travel ~ t^p (2: dense at small deformation)")
+    ap.add_argument("--increments", type=int, default=NINC, help="3-D: the largest increment is 1/N of the step")
+    ap.add_argument("--model", default="eighth", choices=["eighth", "quarter"],
+                    help="3-D: eighth sphere (x, y, z symmetry planes) or quarter (x and z planes)")
+    ap.add_argument("--analyse", action="store_true", help="3-D: only re-read the runs (curves, shapes)")
     a = ap.parse_args()
     if a.list:
         for k, v in CASES.items():
@@ -710,6 +1204,9 @@ def main():
         allres = json.load(open(os.path.join(HERE, "results.json")))
         open(os.path.join(HERE, "convergence.md"), "w").write(report(a.case, a.levels, allres))
         print(open(os.path.join(HERE, "convergence.md")).read())
+        return
+    if a.three_d:
+        three_d(a)
         return
     if shutil.which("ccx") is None:
         sys.exit("ccx not found: run validation/fe/install-fe-deps.sh")
@@ -727,7 +1224,7 @@ def main():
                 kw["kfac"] = a.kfac
             if a.eltype != ELTYPE:
                 kw["eltype"] = a.eltype
-            if a.contact != CONTACT:
+            if a.contact and a.contact != CONTACT:
                 kw["contact"] = a.contact
             r = run_one(case, lv, tag=a.tag, **kw)
             allres.setdefault("runs", {})[r["run"]] = r

@@ -110,7 +110,9 @@ __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void gather_positi
 using ScatterForces = void (*)(const double* f_lanes, const std::int32_t* vertices, double* acc);
 
 void scatter_forces_generic(const double* f_lanes, const std::int32_t* vertices, double* acc) {
+#pragma GCC unroll 16
   for (int lane = 0; lane < kLanes; ++lane) {
+#pragma GCC unroll 4
     for (int a = 0; a < 4; ++a) {
       double* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + lane]);
       out[0] += f_lanes[kLanes * (3 * a) + lane];

@@ -122,32 +122,37 @@ void scatter_forces_generic(const double* f_lanes, const std::int32_t* vertices,
   }
 }
 #if defined(__x86_64__)
-__attribute__((target("avx2"))) void scatter_forces_avx2(const double* f_lanes, const std::int32_t* vertices,
-                                                         double* acc) {
-  const __m256d zero = _mm256_setzero_pd();
-  for (int c = 0; c < kLanes; c += 4) {
-    __m256d corner[4][4];  // [local vertex a][lane c + l] = (f_x, f_y, f_z, 0)
-    for (int a = 0; a < 4; ++a) {
-      const __m256d x = _mm256_load_pd(f_lanes + kLanes * (3 * a) + c);
-      const __m256d y = _mm256_load_pd(f_lanes + kLanes * (3 * a + 1) + c);
-      const __m256d z = _mm256_load_pd(f_lanes + kLanes * (3 * a + 2) + c);
-      const __m256d xy_even = _mm256_unpacklo_pd(x, y);    // x0 y0 x2 y2
-      const __m256d xy_odd = _mm256_unpackhi_pd(x, y);     // x1 y1 x3 y3
-      const __m256d z_odd = _mm256_unpackhi_pd(z, zero);   // z1 0 z3 0
-      const __m256d z_even = _mm256_unpacklo_pd(z, zero);  // z0 0 z2 0
-      corner[a][0] = _mm256_permute2f128_pd(xy_even, z_even, 0x20);
-      corner[a][1] = _mm256_permute2f128_pd(xy_odd, z_odd, 0x20);
-      corner[a][2] = _mm256_permute2f128_pd(xy_even, z_even, 0x31);
-      corner[a][3] = _mm256_permute2f128_pd(xy_odd, z_odd, 0x31);
-    }
-    for (int l = 0; l < 4; ++l) {
-      for (int a = 0; a < 4; ++a) {
-        double* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + c + l]);
-        _mm256_store_pd(out, _mm256_add_pd(_mm256_load_pd(out), corner[a][l]));
-      }
-    }
+// One body for the AVX2 and the AVX-512 copy: the AVX-512 one holds the 16
+// transposed corners in its 32 vector registers instead of spilling them.
+#define CELLFLOW_SCATTER_FORCES_TRANSPOSED(name, isa)                                                        \
+  __attribute__((target(isa))) void name(const double* f_lanes, const std::int32_t* vertices, double* acc) { \
+    const __m256d zero = _mm256_setzero_pd();                                                                \
+    for (int c = 0; c < kLanes; c += 4) {                                                                    \
+      __m256d corner[4][4]; /* [local vertex a][lane c + l] = (f_x, f_y, f_z, 0) */                          \
+      for (int a = 0; a < 4; ++a) {                                                                          \
+        const __m256d x = _mm256_load_pd(f_lanes + kLanes * (3 * a) + c);                                    \
+        const __m256d y = _mm256_load_pd(f_lanes + kLanes * (3 * a + 1) + c);                                \
+        const __m256d z = _mm256_load_pd(f_lanes + kLanes * (3 * a + 2) + c);                                \
+        const __m256d xy_even = _mm256_unpacklo_pd(x, y);   /* x0 y0 x2 y2 */                                \
+        const __m256d xy_odd = _mm256_unpackhi_pd(x, y);    /* x1 y1 x3 y3 */                                \
+        const __m256d z_odd = _mm256_unpackhi_pd(z, zero);  /* z1 0 z3 0 */                                  \
+        const __m256d z_even = _mm256_unpacklo_pd(z, zero); /* z0 0 z2 0 */                                  \
+        corner[a][0] = _mm256_permute2f128_pd(xy_even, z_even, 0x20);                                        \
+        corner[a][1] = _mm256_permute2f128_pd(xy_odd, z_odd, 0x20);                                          \
+        corner[a][2] = _mm256_permute2f128_pd(xy_even, z_even, 0x31);                                        \
+        corner[a][3] = _mm256_permute2f128_pd(xy_odd, z_odd, 0x31);                                          \
+      }                                                                                                      \
+      for (int l = 0; l < 4; ++l) {                                                                          \
+        for (int a = 0; a < 4; ++a) {                                                                        \
+          double* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + c + l]);                   \
+          _mm256_store_pd(out, _mm256_add_pd(_mm256_load_pd(out), corner[a][l]));                            \
+        }                                                                                                    \
+      }                                                                                                      \
+    }                                                                                                        \
   }
-}
+CELLFLOW_SCATTER_FORCES_TRANSPOSED(scatter_forces_avx2, "avx2")
+CELLFLOW_SCATTER_FORCES_TRANSPOSED(scatter_forces_avx512, "avx512f,avx512vl,avx512dq,avx512bw")
+#undef CELLFLOW_SCATTER_FORCES_TRANSPOSED
 #endif
 
 // kStride: doubles per vertex of `forces`, 3 (the caller's array) or 4 (a
@@ -277,12 +282,12 @@ __attribute__((target("avx2"))) double evaluate_range_avx2(const ElasticBody& bo
   return evaluate_range_body<kMooneyRivlin, kForces, kStride, gather_positions_avx2, scatter_forces_avx2>(
       body, y, forces, begin, end, first_inverted, tet_pressure);
 }
-// The AVX-512 copy scatters with the 256-bit transposes: a vertex row is 4 doubles.
+// The AVX-512 copy scatters with the 256-bit transposes too: a vertex row is 4 doubles.
 template <bool kMooneyRivlin, bool kForces, int kStride>
 __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) double evaluate_range_avx512(
     const ElasticBody& body, const double* y, double* forces, std::int64_t begin, std::int64_t end,
     std::int64_t& first_inverted, const double* tet_pressure) {
-  return evaluate_range_body<kMooneyRivlin, kForces, kStride, gather_positions_avx512, scatter_forces_avx2>(
+  return evaluate_range_body<kMooneyRivlin, kForces, kStride, gather_positions_avx512, scatter_forces_avx512>(
       body, y, forces, begin, end, first_inverted, tet_pressure);
 }
 #endif

@@ -454,7 +454,12 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
           evaluate_range<kMooneyRivlin, kForces>(body, y, nullptr, 0, num_tets, first_inverted, tet_pressure);
     }
   } else {
-    std::vector<const double*> accumulators(static_cast<std::size_t>(team), nullptr);
+    // The team's accumulators, for the reduction: the calling thread's list,
+    // kept (no allocation per call) and read through a plain pointer, since
+    // inside the region the name would mean each thread's own list.
+    thread_local std::vector<const double*> accumulator_list;
+    accumulator_list.assign(static_cast<std::size_t>(team), nullptr);
+    const double** accumulators = accumulator_list.data();
     double energy = 0.0;
 #pragma omp parallel num_threads(team) reduction(+ : energy) reduction(min : first_inverted)
     {
@@ -469,7 +474,7 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
         } else {
           acc.clear();
         }
-        accumulators[static_cast<std::size_t>(rank)] = acc.data();
+        accumulators[rank] = acc.data();
         energy = evaluate_range<kMooneyRivlin, kForces, 4>(body, y, acc.data(), begin, end, first_inverted,
                                                            tet_pressure);
 #pragma omp barrier
@@ -477,7 +482,7 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
         for (std::int64_t v = 0; v < num_vertices; ++v) {
           for (int i = 0; i < 3; ++i) {
             double sum = 0.0;
-            for (int r = 1; r < size; ++r) sum += accumulators[static_cast<std::size_t>(r)][4 * v + i];
+            for (int r = 1; r < size; ++r) sum += accumulators[r][4 * v + i];
             forces[3 * v + i] = accumulators[0][4 * v + i] + sum;
           }
         }

@@ -2,8 +2,9 @@
 // the 12x12 tangent block all come from the same stages (deformation_gradient,
 // inverse_cube_root, stress_from_gradient, then forces_from_stress and
 // stress_derivative), so the energy, its gradient and its Hessian cannot drift
-// apart. The force loop (elastic_forces.cc) runs the stages over blocks of tets;
-// the tangent runs them tet by tet (tet_stress, tet_tangent).
+// apart. The force loop (elastic_forces.cc) runs the stages over blocks of tets
+// (with the stress pre-scaled by -V0 and forces_from_scaled_stress); the
+// tangent runs them tet by tet (tet_stress, tet_tangent).
 //
 // Local vertex a = 0..3 of a tetrahedron is the paper's vertex a+1; local vertex
 // 3 (the paper's vertex 4) is the origin of the element coordinates. With the

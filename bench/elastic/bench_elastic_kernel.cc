@@ -6,6 +6,11 @@
 // BM_ElasticForcesSimd runs each SIMD copy of the force loop (generic SSE2,
 // AVX2, AVX-512; the library picks the best at run time) on one thread.
 //
+// BM_ElasticForcesFlowCell is the force call of a flow step: the default flow
+// cell (sphere of R = 6 um, mesh::kDefaultSphereVertexCount vertices, E = 10 Pa,
+// nu = 0.48; w = 1 is the flow scenes' default) under a smooth deformation,
+// one thread, small enough to stay in the L2 cache.
+//
 // BM_ElasticForcesColoured* are the alternative race-free scatter (graph
 // colouring of the tets, one parallel loop per colour) measured against the
 // library's private per-thread force buffers.
@@ -21,6 +26,7 @@
 #include <vector>
 
 #include "physics/elastic/elastic_body.h"
+#include "physics/mesh/sphere_mesh.h"
 #include "physics/mesh/tet_colouring.h"
 #include "tests/elastic/box_mesh.h"
 
@@ -151,6 +157,61 @@ BENCHMARK(BM_ElasticEnergy)
     ->Args({1, 1})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
+
+// The default flow cell, one per w, built once (nullptr if meshing failed).
+const Scene* flow_cell(double w) {
+  static std::map<double, std::unique_ptr<Scene>> scenes;
+  auto& slot = scenes[w];
+  if (!slot) {
+    constexpr double kRadius = 6e-6;
+    mesh::SphereMeshOptions options;
+    options.radius_m = kRadius;
+    StatusOr<mesh::TetMesh> mesh = mesh::make_sphere_mesh(options);
+    if (!mesh.ok()) return nullptr;
+    slot = std::make_unique<Scene>();
+    slot->mesh = std::move(mesh).value();
+    const Material materials[] = {Material{10.0, 0.48, w}};
+    slot->body = std::move(make_elastic_body(slot->mesh, materials)).value();
+    // an ellipsoid stretched 1.3 x along x plus a 5 % smooth ripple
+    slot->positions.resize(slot->mesh.positions_m.size());
+    for (std::size_t v = 0; v < slot->mesh.num_vertices(); ++v) {
+      const double* x = slot->mesh.positions_m.data() + 3 * v;
+      const double scale[3] = {1.3, 1.0 / std::sqrt(1.3), 1.0 / std::sqrt(1.3)};
+      for (int i = 0; i < 3; ++i) {
+        slot->positions[3 * v + i] =
+            scale[i] * x[i] + 0.05 * kRadius * std::sin(3.0 * x[(i + 1) % 3] / kRadius + i);
+      }
+    }
+  }
+  return slot.get();
+}
+
+// args: Mooney-Rivlin (0: w = 1, the flow default; 1: w = 0.5)
+void BM_ElasticForcesFlowCell(benchmark::State& state) {
+  const Scene* s = flow_cell(state.range(0) ? 0.5 : 1.0);
+  if (s == nullptr) {
+    state.SkipWithError("sphere mesh failed");
+    return;
+  }
+  std::vector<double> forces(s->positions.size(), 0.0);
+  const double cpu_start = process_cpu_seconds();
+  for (auto _ : state) {
+    std::fill(forces.begin(), forces.end(), 0.0);  // as the flow step does
+    const ElasticEvaluation eval = add_elastic_forces(s->body, s->positions.data(), forces.data(), 1);
+    benchmark::DoNotOptimize(eval);
+    benchmark::ClobberMemory();
+  }
+  set_counters(state, s->body.num_tets(), 1, process_cpu_seconds() - cpu_start);
+  state.counters["tets"] = static_cast<double>(s->body.num_tets());
+  state.counters["us_per_call"] =
+      benchmark::Counter(1e6 * (process_cpu_seconds() - cpu_start) / static_cast<double>(state.iterations()));
+}
+BENCHMARK(BM_ElasticForcesFlowCell)
+    ->ArgName("mooney_rivlin")
+    ->Arg(0)
+    ->Arg(1)
+    ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);
 
 // The colouring alternative: tets reordered by colour (data permuted so each
 // colour streams contiguously), one parallel loop per colour scattering

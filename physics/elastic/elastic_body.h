@@ -78,7 +78,9 @@ struct ElasticEvaluation {
 
 // Adds the elastic forces at deformed positions y (3 per vertex, metres) into
 // forces_n and returns the elastic energy sum V0 U. Energy and forces come from
-// one code path. `threads` <= 0 uses the OpenMP default.
+// one code path. `threads` <= 0 uses the OpenMP default. Each thread scatters
+// into its own padded accumulator (4 doubles per vertex, kept per thread and
+// reused by later calls): the scatter allocates nothing once it has run.
 ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
                                      int threads = 0);
 

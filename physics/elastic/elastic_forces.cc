@@ -35,10 +35,14 @@ using detail::volumetric_pressures;
 // the lanes). B, the vertex indices and the material are read from the
 // blocked copies with vector loads; the positions by vertex index for the whole
 // block (vector gathers where the level has them, AVX2 and AVX-512). The
-// forces are scattered and the energy summed tet after tet in order.
+// forces are scattered and the energy summed tet after tet in order; the
+// callers that cover many tets (add_elastic_forces) scatter into a padded
+// accumulator of 4 doubles per vertex with vector adds (ScatterForces).
 // The lane loop has no FMA contraction (-ffp-contract=off, CMakeLists.txt) and
 // the same operation order as one tet alone, so every SIMD level gives the
-// same bits as the scalar tangent path.
+// same bits. The stress is scaled by -V0 inside stress_from_gradient (three
+// products instead of nine), so the forces agree with the tangent path's
+// (stress scaled afterwards) to round-off, not bit for bit.
 // With tet_pressure (kNodalAverage) the tets carry no kappa term; their
 // stress gets tet_pressure[t] cof(F) instead, and the volumetric energy is
 // summed per vertex by volumetric_pressures.
@@ -47,6 +51,7 @@ constexpr int kLanes = kTetBlockLanes;
 struct TetBlock {
   alignas(64) double y[12 * kLanes];       // y[kLanes (3 a + i) + lane] = y_i of local vertex a
   alignas(64) double forces[12 * kLanes];  // forces[kLanes (3 a + i) + lane] = f_i of local vertex a
+  alignas(64) double energy[kLanes];       // V0 U of each lane
   kernel::TetStressLanes<kLanes> stress;
 };
 
@@ -92,7 +97,67 @@ __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) void gather_positi
 }
 #endif
 
-template <bool kMooneyRivlin, bool kForces, GatherPositions kGather>
+// The forces of a full block (TetBlock::forces layout) added into a padded
+// accumulator of 4 doubles per vertex (acc[4 v + i], i < 3; acc[4 v + 3] is
+// padding and receives zeros), tet after tet in lane order and, within a tet,
+// corner after corner: the same additions in the same order as the scalar
+// scatter into 3 doubles per vertex, so every copy gives the same bits. One
+// copy per SIMD level: AVX2 and AVX-512 transpose four lanes of a corner
+// (x, y, z rows) into four (x, y, z, 0) vectors and add each with one aligned
+// 256-bit load and store, instead of three scalar read-modify-writes;
+// 32-byte rows never straddle a cache line and the next tet's load at the same
+// vertex is forwarded from the store whole.
+using ScatterForces = void (*)(const double* f_lanes, const std::int32_t* vertices, double* acc);
+
+void scatter_forces_generic(const double* f_lanes, const std::int32_t* vertices, double* acc) {
+#pragma GCC unroll 16
+  for (int lane = 0; lane < kLanes; ++lane) {
+#pragma GCC unroll 4
+    for (int a = 0; a < 4; ++a) {
+      double* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + lane]);
+      out[0] += f_lanes[kLanes * (3 * a) + lane];
+      out[1] += f_lanes[kLanes * (3 * a + 1) + lane];
+      out[2] += f_lanes[kLanes * (3 * a + 2) + lane];
+    }
+  }
+}
+#if defined(__x86_64__)
+// One body for the AVX2 and the AVX-512 copy: the AVX-512 one holds the 16
+// transposed corners in its 32 vector registers instead of spilling them.
+#define CELLFLOW_SCATTER_FORCES_TRANSPOSED(name, isa)                                                        \
+  __attribute__((target(isa))) void name(const double* f_lanes, const std::int32_t* vertices, double* acc) { \
+    const __m256d zero = _mm256_setzero_pd();                                                                \
+    for (int c = 0; c < kLanes; c += 4) {                                                                    \
+      __m256d corner[4][4]; /* [local vertex a][lane c + l] = (f_x, f_y, f_z, 0) */                          \
+      for (int a = 0; a < 4; ++a) {                                                                          \
+        const __m256d x = _mm256_load_pd(f_lanes + kLanes * (3 * a) + c);                                    \
+        const __m256d y = _mm256_load_pd(f_lanes + kLanes * (3 * a + 1) + c);                                \
+        const __m256d z = _mm256_load_pd(f_lanes + kLanes * (3 * a + 2) + c);                                \
+        const __m256d xy_even = _mm256_unpacklo_pd(x, y);   /* x0 y0 x2 y2 */                                \
+        const __m256d xy_odd = _mm256_unpackhi_pd(x, y);    /* x1 y1 x3 y3 */                                \
+        const __m256d z_odd = _mm256_unpackhi_pd(z, zero);  /* z1 0 z3 0 */                                  \
+        const __m256d z_even = _mm256_unpacklo_pd(z, zero); /* z0 0 z2 0 */                                  \
+        corner[a][0] = _mm256_permute2f128_pd(xy_even, z_even, 0x20);                                        \
+        corner[a][1] = _mm256_permute2f128_pd(xy_odd, z_odd, 0x20);                                          \
+        corner[a][2] = _mm256_permute2f128_pd(xy_even, z_even, 0x31);                                        \
+        corner[a][3] = _mm256_permute2f128_pd(xy_odd, z_odd, 0x31);                                          \
+      }                                                                                                      \
+      for (int l = 0; l < 4; ++l) {                                                                          \
+        for (int a = 0; a < 4; ++a) {                                                                        \
+          double* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + c + l]);                   \
+          _mm256_store_pd(out, _mm256_add_pd(_mm256_load_pd(out), corner[a][l]));                            \
+        }                                                                                                    \
+      }                                                                                                      \
+    }                                                                                                        \
+  }
+CELLFLOW_SCATTER_FORCES_TRANSPOSED(scatter_forces_avx2, "avx2")
+CELLFLOW_SCATTER_FORCES_TRANSPOSED(scatter_forces_avx512, "avx512f,avx512vl,avx512dq,avx512bw")
+#undef CELLFLOW_SCATTER_FORCES_TRANSPOSED
+#endif
+
+// kStride: doubles per vertex of `forces`, 3 (the caller's array) or 4 (a
+// padded accumulator, see ScatterForces; full blocks then go through kScatter).
+template <bool kMooneyRivlin, bool kForces, int kStride, GatherPositions kGather, ScatterForces kScatter>
 inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBody& body, const double* y,
                                                                  double* forces, std::int64_t begin,
                                                                  std::int64_t end,
@@ -136,11 +201,13 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
         s.det_f[lane] = det_f;
         // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped below.
         const double j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
-        kernel::stress_from_gradient<kMooneyRivlin, kLanes, false>(mu1_b[lane], mu2_scale * mu2_b[lane],
-                                                                   kappa_scale * kappa_b[lane], j_m13, s,
-                                                                   lane, pressure_scale * pressure_b[lane]);
+        // The stress comes scaled by -V0 for the forces (the energy only ignores it).
+        kernel::stress_from_gradient<kMooneyRivlin, kLanes, false>(
+            mu1_b[lane], mu2_scale * mu2_b[lane], kappa_scale * kappa_b[lane], j_m13, s, lane,
+            pressure_scale * pressure_b[lane], -volume_b[lane]);
+        blk.energy[lane] = volume_b[lane] * s.energy_density[lane];
         if constexpr (kForces) {
-          kernel::forces_from_stress<kLanes>(b + lane, volume_b[lane], s.stress + lane, blk.forces + lane);
+          kernel::forces_from_scaled_stress<kLanes>(b + lane, s.stress + lane, blk.forces + lane);
         }
       }
     };
@@ -159,10 +226,10 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
           first_inverted = std::min(first_inverted, t);
           continue;
         }
-        energy += volume_b[lane] * blk.stress.energy_density[lane];
+        energy += blk.energy[lane];
         if constexpr (kForces) {
           for (int a = 0; a < 4; ++a) {
-            double* out = forces + 3 * static_cast<std::int64_t>(v0[kLanes * a + lane]);
+            double* out = forces + kStride * static_cast<std::int64_t>(v0[kLanes * a + lane]);
             out[0] += blk.forces[kLanes * (3 * a) + lane];
             out[1] += blk.forces[kLanes * (3 * a + 1) + lane];
             out[2] += blk.forces[kLanes * (3 * a + 2) + lane];
@@ -174,8 +241,10 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
     for (int lane = 0; lane < kLanes; ++lane) any_inverted |= blk.stress.det_f[lane] <= 0.0;
     if (lane_begin == 0 && lane_end == kLanes && !any_inverted) {
 #pragma GCC unroll 16
-      for (int lane = 0; lane < kLanes; ++lane) energy += volume_b[lane] * blk.stress.energy_density[lane];
-      if constexpr (kForces) {
+      for (int lane = 0; lane < kLanes; ++lane) energy += blk.energy[lane];
+      if constexpr (kForces && kStride == 4) {
+        kScatter(blk.forces, v0, forces);
+      } else if constexpr (kForces) {
 #pragma GCC unroll 16
         for (int lane = 0; lane < kLanes; ++lane) {
 #pragma GCC unroll 4
@@ -197,27 +266,29 @@ inline __attribute__((always_inline)) double evaluate_range_body(const ElasticBo
 // One copy of the tet loop per SIMD level, the best the CPU has chosen at run
 // time (resolve_tet_simd): the default build has no -march, so the generic
 // copy is SSE2 and runs on any x86-64.
-template <bool kMooneyRivlin, bool kForces>
+template <bool kMooneyRivlin, bool kForces, int kStride>
 double evaluate_range_generic(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
                               std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure) {
-  return evaluate_range_body<kMooneyRivlin, kForces, gather_positions_generic>(body, y, forces, begin, end,
-                                                                               first_inverted, tet_pressure);
+  return evaluate_range_body<kMooneyRivlin, kForces, kStride, gather_positions_generic,
+                             scatter_forces_generic>(body, y, forces, begin, end, first_inverted,
+                                                     tet_pressure);
 }
 #if defined(__x86_64__)
-template <bool kMooneyRivlin, bool kForces>
+template <bool kMooneyRivlin, bool kForces, int kStride>
 __attribute__((target("avx2"))) double evaluate_range_avx2(const ElasticBody& body, const double* y,
                                                            double* forces, std::int64_t begin,
                                                            std::int64_t end, std::int64_t& first_inverted,
                                                            const double* tet_pressure) {
-  return evaluate_range_body<kMooneyRivlin, kForces, gather_positions_avx2>(body, y, forces, begin, end,
-                                                                            first_inverted, tet_pressure);
+  return evaluate_range_body<kMooneyRivlin, kForces, kStride, gather_positions_avx2, scatter_forces_avx2>(
+      body, y, forces, begin, end, first_inverted, tet_pressure);
 }
-template <bool kMooneyRivlin, bool kForces>
+// The AVX-512 copy scatters with the 256-bit transposes too: a vertex row is 4 doubles.
+template <bool kMooneyRivlin, bool kForces, int kStride>
 __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) double evaluate_range_avx512(
     const ElasticBody& body, const double* y, double* forces, std::int64_t begin, std::int64_t end,
     std::int64_t& first_inverted, const double* tet_pressure) {
-  return evaluate_range_body<kMooneyRivlin, kForces, gather_positions_avx512>(body, y, forces, begin, end,
-                                                                              first_inverted, tet_pressure);
+  return evaluate_range_body<kMooneyRivlin, kForces, kStride, gather_positions_avx512, scatter_forces_avx512>(
+      body, y, forces, begin, end, first_inverted, tet_pressure);
 }
 #endif
 
@@ -228,7 +299,9 @@ TetSimd resolve_tet_simd(TetSimd requested) {
   return tet_simd_supported(requested) ? requested : TetSimd::kGeneric;
 }
 
-template <bool kMooneyRivlin, bool kForces>
+// kStride 4: `forces` is a padded accumulator (PaddedForces), 3: the caller's
+// array (energy only passes 3 and no forces).
+template <bool kMooneyRivlin, bool kForces, int kStride = 3>
 double evaluate_range(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
                       std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure,
                       TetSimd simd = TetSimd::kAuto) {
@@ -237,23 +310,55 @@ double evaluate_range(const ElasticBody& body, const double* y, double* forces, 
       body.block_vertices.size() != 4 * kLanes * num_blocks) {
     ElasticBody blocked = body;  // assembled by hand without build_lane_blocks
     build_lane_blocks(blocked);
-    return evaluate_range<kMooneyRivlin, kForces>(blocked, y, forces, begin, end, first_inverted,
-                                                  tet_pressure, simd);
+    return evaluate_range<kMooneyRivlin, kForces, kStride>(blocked, y, forces, begin, end, first_inverted,
+                                                           tet_pressure, simd);
   }
   switch (resolve_tet_simd(simd)) {
 #if defined(__x86_64__)
     case TetSimd::kAvx512:
-      return evaluate_range_avx512<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
-                                                           tet_pressure);
+      return evaluate_range_avx512<kMooneyRivlin, kForces, kStride>(body, y, forces, begin, end,
+                                                                    first_inverted, tet_pressure);
     case TetSimd::kAvx2:
-      return evaluate_range_avx2<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
-                                                         tet_pressure);
+      return evaluate_range_avx2<kMooneyRivlin, kForces, kStride>(body, y, forces, begin, end, first_inverted,
+                                                                  tet_pressure);
 #endif
     default:
-      return evaluate_range_generic<kMooneyRivlin, kForces>(body, y, forces, begin, end, first_inverted,
-                                                            tet_pressure);
+      return evaluate_range_generic<kMooneyRivlin, kForces, kStride>(body, y, forces, begin, end,
+                                                                     first_inverted, tet_pressure);
   }
 }
+
+// The padded force accumulator of the calling thread: 4 doubles per vertex,
+// 32-byte aligned (ScatterForces). Kept per thread and reused, so a flow step
+// allocates nothing once it has run; the OpenMP team's threads persist.
+class PaddedForces {
+ public:
+  explicit PaddedForces(std::size_t num_vertices) : num_vertices_(num_vertices) {
+    thread_local std::vector<double> storage;
+    if (storage.size() < 4 * num_vertices + 4) storage.resize(4 * num_vertices + 4);
+    const std::uintptr_t address = reinterpret_cast<std::uintptr_t>(storage.data());
+    data_ = storage.data() + (32 - address % 32) % 32 / sizeof(double);
+  }
+  double* data() const { return data_; }
+  // acc = the caller's forces (3 per vertex) and zero padding: the tet sums
+  // then continue from them in the same order as a direct scatter.
+  void load(const double* forces) const {
+    for (std::size_t v = 0; v < num_vertices_; ++v) {
+      for (int i = 0; i < 3; ++i) data_[4 * v + i] = forces[3 * v + i];
+      data_[4 * v + 3] = 0.0;
+    }
+  }
+  void clear() const { std::fill(data_, data_ + 4 * num_vertices_, 0.0); }
+  void store(double* forces) const {
+    for (std::size_t v = 0; v < num_vertices_; ++v) {
+      for (int i = 0; i < 3; ++i) forces[3 * v + i] = data_[4 * v + i];
+    }
+  }
+
+ private:
+  std::size_t num_vertices_;
+  double* data_;
+};
 
 // Deformed volume v = det[y1 - y4, y2 - y4, y3 - y4] / 6 of a tetrahedron.
 double deformed_volume(const double* y, const std::int32_t* v) {
@@ -317,14 +422,17 @@ double volumetric_pressures(const ElasticBody& body, const double* y, int team,
 
 namespace {
 
-// Tets are split into one contiguous range per thread. Thread 0 scatters into
-// forces_n, the others into private buffers that are added afterwards: no two
-// threads write the same memory, and every thread streams its tets in order
-// (faster than colouring here, see bench/elastic).
+// Tets are split into one contiguous range per thread. Every thread scatters
+// into its own padded accumulator (PaddedForces), thread 0's starting from
+// forces_n, the others' from zero; the others are added to thread 0's
+// afterwards: no two threads write the same memory, and every thread streams
+// its tets in order (faster than colouring here, see bench/elastic). The sums
+// are those of a direct scatter into forces_n (thread 0) and into zeroed
+// private buffers (the others).
 template <bool kMooneyRivlin, bool kForces>
 ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* forces, int threads) {
   const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
-  const std::int64_t num_dofs = 3 * static_cast<std::int64_t>(body.num_vertices);
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body.num_vertices);
   const int team = team_size(threads, num_tets, kMinForceTetsPerThread);
   ElasticEvaluation result;
   std::int64_t first_inverted = kNoTet;
@@ -335,31 +443,52 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
   }
   const double* tet_pressure = pressure.empty() ? nullptr : pressure.data();
   if (team == 1) {
-    result.energy_j =
-        evaluate_range<kMooneyRivlin, kForces>(body, y, forces, 0, num_tets, first_inverted, tet_pressure);
+    if constexpr (kForces) {
+      const PaddedForces acc(body.num_vertices);
+      acc.load(forces);
+      result.energy_j = evaluate_range<kMooneyRivlin, kForces, 4>(body, y, acc.data(), 0, num_tets,
+                                                                  first_inverted, tet_pressure);
+      acc.store(forces);
+    } else {
+      result.energy_j =
+          evaluate_range<kMooneyRivlin, kForces>(body, y, nullptr, 0, num_tets, first_inverted, tet_pressure);
+    }
   } else {
-    std::vector<double> buffers;
-    if constexpr (kForces) buffers.assign(static_cast<std::size_t>((team - 1) * num_dofs), 0.0);
+    // The team's accumulators, for the reduction: the calling thread's list,
+    // kept (no allocation per call) and read through a plain pointer, since
+    // inside the region the name would mean each thread's own list.
+    thread_local std::vector<const double*> accumulator_list;
+    accumulator_list.assign(static_cast<std::size_t>(team), nullptr);
+    const double** accumulators = accumulator_list.data();
     double energy = 0.0;
 #pragma omp parallel num_threads(team) reduction(+ : energy) reduction(min : first_inverted)
     {
       const int rank = omp_get_thread_num();
       const int size = omp_get_num_threads();
-      double* out = nullptr;
-      if constexpr (kForces) out = rank == 0 ? forces : buffers.data() + (rank - 1) * num_dofs;
       const std::int64_t begin = num_tets * rank / size;
       const std::int64_t end = num_tets * (rank + 1) / size;
-      energy = evaluate_range<kMooneyRivlin, kForces>(body, y, out, begin, end, first_inverted, tet_pressure);
       if constexpr (kForces) {
-        if (size > 1) {
+        const PaddedForces acc(body.num_vertices);
+        if (rank == 0) {
+          acc.load(forces);
+        } else {
+          acc.clear();
+        }
+        accumulators[rank] = acc.data();
+        energy = evaluate_range<kMooneyRivlin, kForces, 4>(body, y, acc.data(), begin, end, first_inverted,
+                                                           tet_pressure);
 #pragma omp barrier
 #pragma omp for schedule(static)
-          for (std::int64_t k = 0; k < num_dofs; ++k) {
+        for (std::int64_t v = 0; v < num_vertices; ++v) {
+          for (int i = 0; i < 3; ++i) {
             double sum = 0.0;
-            for (int r = 1; r < size; ++r) sum += buffers[(r - 1) * num_dofs + k];
-            forces[k] += sum;
+            for (int r = 1; r < size; ++r) sum += accumulators[r][4 * v + i];
+            forces[3 * v + i] = accumulators[0][4 * v + i] + sum;
           }
         }
+      } else {
+        energy = evaluate_range<kMooneyRivlin, kForces>(body, y, nullptr, begin, end, first_inverted,
+                                                        tet_pressure);
       }
     }
     result.energy_j = energy;
@@ -367,6 +496,25 @@ ElasticEvaluation evaluate(const ElasticBody& body, const double* y, double* for
   result.energy_j += volumetric_energy;
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;
+}
+
+// add_elastic_forces_of_range over [begin, end): through a padded accumulator
+// when the range is long enough to pay for copying the forces in and out
+// (same bits either way).
+template <bool kMooneyRivlin>
+double forces_of_range(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
+                       std::int64_t end, std::int64_t& first_inverted, const double* tet_pressure,
+                       TetSimd simd) {
+  if (2 * (end - begin) < static_cast<std::int64_t>(body.num_vertices)) {
+    return evaluate_range<kMooneyRivlin, true>(body, y, forces, begin, end, first_inverted, tet_pressure,
+                                               simd);
+  }
+  const PaddedForces acc(body.num_vertices);
+  acc.load(forces);
+  const double energy = evaluate_range<kMooneyRivlin, true, 4>(body, y, acc.data(), begin, end,
+                                                               first_inverted, tet_pressure, simd);
+  acc.store(forces);
+  return energy;
 }
 
 }  // namespace
@@ -390,11 +538,11 @@ ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const dou
   }
   const double* tet_pressure = pressure.empty() ? nullptr : pressure.data();
   if (body.neo_hookean) {
-    result.energy_j += evaluate_range<false, true>(body, positions_m, forces_n, begin_tet, end_tet,
-                                                   first_inverted, tet_pressure, simd);
+    result.energy_j += forces_of_range<false>(body, positions_m, forces_n, begin_tet, end_tet, first_inverted,
+                                              tet_pressure, simd);
   } else {
-    result.energy_j += evaluate_range<true, true>(body, positions_m, forces_n, begin_tet, end_tet,
-                                                  first_inverted, tet_pressure, simd);
+    result.energy_j += forces_of_range<true>(body, positions_m, forces_n, begin_tet, end_tet, first_inverted,
+                                             tet_pressure, simd);
   }
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;

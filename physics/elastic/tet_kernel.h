@@ -2,8 +2,9 @@
 // the 12x12 tangent block all come from the same stages (deformation_gradient,
 // inverse_cube_root, stress_from_gradient, then forces_from_stress and
 // stress_derivative), so the energy, its gradient and its Hessian cannot drift
-// apart. The force loop (elastic_forces.cc) runs the stages over blocks of tets;
-// the tangent runs them tet by tet (tet_stress, tet_tangent).
+// apart. The force loop (elastic_forces.cc) runs the stages over blocks of tets
+// (with the stress pre-scaled by -V0 and forces_from_scaled_stress); the
+// tangent runs them tet by tet (tet_stress, tet_tangent).
 //
 // Local vertex a = 0..3 of a tetrahedron is the paper's vertex a+1; local vertex
 // 3 (the paper's vertex 4) is the origin of the element coordinates. With the
@@ -126,13 +127,16 @@ inline __attribute__((always_inline)) double deformation_gradient(const double* 
 // from s.f, s.cof, s.det_f (> 0) and J^-1/3 (stage 2: inverse_cube_root).
 // `pressure` adds pressure cof(F) to the stress and nothing to the energy
 // density (the nodal-averaged volumetric energy is summed per vertex,
-// elastic_forces.cc). kTangentData false (the force loop) skips storing what
-// only stress_derivative reads (c, fc and the scalars other than det_f and
-// energy_density): fewer stores, the same arithmetic.
+// elastic_forces.cc). s.stress receives stress_scale P: the force loop passes
+// -V0 (forces_from_scaled_stress), which costs three products here instead
+// of nine there. kTangentData false (the force loop) skips storing what only
+// stress_derivative reads (c, fc and the scalars other than det_f and
+// energy_density) and computing F C, which the stress does not need.
 template <bool kMooneyRivlin, int S, bool kTangentData = true>
 inline __attribute__((always_inline)) void stress_from_gradient(double mu1, double mu2, double kappa,
                                                                 double j_m13, TetStressLanes<S>& s, int lane,
-                                                                double pressure = 0.0) {
+                                                                double pressure = 0.0,
+                                                                double stress_scale = 1.0) {
   const double* f = s.f + lane;
   const double* cof = s.cof + lane;
   const double det_f = s.det_f[lane];
@@ -143,15 +147,30 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
     s.inv_det[lane] = inv_det;
     s.j_m23[lane] = j_m23;
   }
-  // T_C = tr C = F_il F_il   (paper eq. 3-4)
-  double trace_c = 0.0;
-  for (int k = 0; k < 9; ++k) trace_c += f[S * k] * f[S * k];
+  // C = F^T F (symmetric: six products; Mooney-Rivlin only)
+  double c[9];
+  double trace_c;
+  if constexpr (kMooneyRivlin) {
+    c[0] = f[0] * f[0] + f[S * 3] * f[S * 3] + f[S * 6] * f[S * 6];
+    c[4] = f[S * 1] * f[S * 1] + f[S * 4] * f[S * 4] + f[S * 7] * f[S * 7];
+    c[8] = f[S * 2] * f[S * 2] + f[S * 5] * f[S * 5] + f[S * 8] * f[S * 8];
+    c[1] = c[3] = f[0] * f[S * 1] + f[S * 3] * f[S * 4] + f[S * 6] * f[S * 7];
+    c[2] = c[6] = f[0] * f[S * 2] + f[S * 3] * f[S * 5] + f[S * 6] * f[S * 8];
+    c[5] = c[7] = f[S * 1] * f[S * 2] + f[S * 4] * f[S * 5] + f[S * 7] * f[S * 8];
+    // T_C = tr C   (paper eq. 3-4), from the diagonal of C
+    trace_c = c[0] + c[4] + c[8];
+  } else {
+    // T_C = tr C = F_il F_il   (paper eq. 3-4)
+    trace_c = 0.0;
+    for (int k = 0; k < 9; ++k) trace_c += f[S * k] * f[S * k];
+  }
   if constexpr (kTangentData) s.trace_c[lane] = trace_c;
   const double jm1 = det_f - 1.0;
   // I = T_C J^-2/3   (paper eq. 3)
   const double inv_i = trace_c * j_m23;
   // U = mu1/2 (I - 3) + mu2/2 (K - 3) + kappa/2 (J - 1)^2   (paper eq. 5)
-  double energy = 0.5 * mu1 * (inv_i - 3.0) + 0.5 * kappa * jm1 * jm1;
+  // (twice U here: the factor 1/2 is applied once at the end)
+  double energy = mu1 * (inv_i - 3.0) + kappa * jm1 * jm1;
   // dU/dF = c_F F + c_FC F C + c_cof cof(F), from the derivative table (paper section 3.2):
   // c_F = mu1 J^-2/3 + mu2 T_C J^-4/3, c_FC = -mu2 J^-4/3,
   // c_cof = -mu1/3 T_C J^-5/3 - 2/3 mu2 K' J^-7/3 + kappa (J - 1), K' = (T_C^2 - T_C2) / 2
@@ -160,44 +179,56 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
   double* stress = s.stress + lane;
   if constexpr (kMooneyRivlin) {
     const double j_m43 = j_m23 * j_m23;
-    if constexpr (kTangentData) s.j_m43[lane] = j_m43;
-    // C = F^T F (symmetric: six products)
-    double c[9];
-    c[0] = f[0] * f[0] + f[S * 3] * f[S * 3] + f[S * 6] * f[S * 6];
-    c[4] = f[S * 1] * f[S * 1] + f[S * 4] * f[S * 4] + f[S * 7] * f[S * 7];
-    c[8] = f[S * 2] * f[S * 2] + f[S * 5] * f[S * 5] + f[S * 8] * f[S * 8];
-    c[1] = c[3] = f[0] * f[S * 1] + f[S * 3] * f[S * 4] + f[S * 6] * f[S * 7];
-    c[2] = c[6] = f[0] * f[S * 2] + f[S * 3] * f[S * 5] + f[S * 6] * f[S * 8];
-    c[5] = c[7] = f[S * 1] * f[S * 2] + f[S * 4] * f[S * 5] + f[S * 7] * f[S * 8];
     if constexpr (kTangentData) {
+      s.j_m43[lane] = j_m43;
       for (int k = 0; k < 9; ++k) s.c[S * k + lane] = c[k];
     }
-    // T_C2 = tr C^2 = C_lm C_lm   (paper eq. 3-4)
-    const double trace_c2 =
-        c[0] * c[0] + c[4] * c[4] + c[8] * c[8] + 2.0 * (c[1] * c[1] + c[2] * c[2] + c[5] * c[5]);
-    // K = 1/2 (T_C^2 - T_C2) J^-4/3   (paper eq. 3)
-    const double k_numerator = 0.5 * (trace_c * trace_c - trace_c2);
+    // K' = (T_C^2 - T_C2) / 2 with T_C2 = tr C^2 (paper eq. 3-4) is the second
+    // invariant of C, the sum of its principal 2x2 minors (six products).
+    const double k_numerator =
+        (c[0] * c[4] - c[1] * c[1]) + (c[0] * c[8] - c[2] * c[2]) + (c[4] * c[8] - c[5] * c[5]);
     if constexpr (kTangentData) s.k_numerator[lane] = k_numerator;
+    // K = K' J^-4/3   (paper eq. 3)
     const double inv_k = k_numerator * j_m43;
-    energy += 0.5 * mu2 * (inv_k - 3.0);
+    energy += mu2 * (inv_k - 3.0);
     coef_f += mu2 * trace_c * j_m43;
     coef_cof -= (2.0 / 3.0) * mu2 * inv_k * inv_det;
     const double coef_fc = -mu2 * j_m43;
-    // (F C)_il = F_im C_ml
-    double* fc = s.fc + lane;
+    if constexpr (kTangentData) {
+      // (F C)_il = F_im C_ml
+      double* fc = s.fc + lane;
+      for (int i = 0; i < 3; ++i) {
+        for (int l = 0; l < 3; ++l) {
+          fc[S * (3 * i + l)] =
+              f[S * 3 * i] * c[l] + f[S * (3 * i + 1)] * c[3 + l] + f[S * (3 * i + 2)] * c[6 + l];
+        }
+      }
+    }
+    // c_F F + c_FC F C = F M with the symmetric M = c_F 1 + c_FC C: 9 products
+    // and 3 sums for M, then 45 for F M, instead of 45 for F C and 45 for the sum.
+    const double scaled_f = stress_scale * coef_f;
+    const double scaled_fc = stress_scale * coef_fc;
+    const double scaled_cof = stress_scale * coef_cof;
+    double m[9];
+    m[0] = scaled_f + scaled_fc * c[0];
+    m[4] = scaled_f + scaled_fc * c[4];
+    m[8] = scaled_f + scaled_fc * c[8];
+    m[1] = m[3] = scaled_fc * c[1];
+    m[2] = m[6] = scaled_fc * c[2];
+    m[5] = m[7] = scaled_fc * c[5];
     for (int i = 0; i < 3; ++i) {
       for (int l = 0; l < 3; ++l) {
-        const double fc_il =
-            f[S * 3 * i] * c[l] + f[S * (3 * i + 1)] * c[3 + l] + f[S * (3 * i + 2)] * c[6 + l];
-        if constexpr (kTangentData) fc[S * (3 * i + l)] = fc_il;
         stress[S * (3 * i + l)] =
-            coef_f * f[S * (3 * i + l)] + coef_fc * fc_il + coef_cof * cof[S * (3 * i + l)];
+            (f[S * 3 * i] * m[l] + f[S * (3 * i + 1)] * m[3 + l] + f[S * (3 * i + 2)] * m[6 + l]) +
+            scaled_cof * cof[S * (3 * i + l)];
       }
     }
   } else {
-    for (int k = 0; k < 9; ++k) stress[S * k] = coef_f * f[S * k] + coef_cof * cof[S * k];
+    const double scaled_f = stress_scale * coef_f;
+    const double scaled_cof = stress_scale * coef_cof;
+    for (int k = 0; k < 9; ++k) stress[S * k] = scaled_f * f[S * k] + scaled_cof * cof[S * k];
   }
-  s.energy_density[lane] = energy;
+  s.energy_density[lane] = 0.5 * energy;
 }
 
 // All stages for one tet. Returns false for J <= 0 (inverted or flat element):
@@ -226,6 +257,26 @@ inline __attribute__((always_inline)) void forces_from_stress(const double* b, d
     const double p0 = scale * stress[S * 3 * i];
     const double p1 = scale * stress[S * (3 * i + 1)];
     const double p2 = scale * stress[S * (3 * i + 2)];
+    const double fa0 = p0 * b[0] + p1 * b[S * 1] + p2 * b[S * 2];
+    const double fa1 = p0 * b[S * 3] + p1 * b[S * 4] + p2 * b[S * 5];
+    const double fa2 = p0 * b[S * 6] + p1 * b[S * 7] + p2 * b[S * 8];
+    forces[S * i] = fa0;
+    forces[S * (3 + i)] = fa1;
+    forces[S * (6 + i)] = fa2;
+    forces[S * (9 + i)] = -(fa0 + fa1 + fa2);
+  }
+}
+
+// As forces_from_stress, from a stress already scaled by -V0
+// (stress_from_gradient with stress_scale = -V0): f_i^a = (-V0 P)_il B_al.
+template <int S = 1>
+inline __attribute__((always_inline)) void forces_from_scaled_stress(const double* b,
+                                                                     const double* scaled_stress,
+                                                                     double* forces) {
+  for (int i = 0; i < 3; ++i) {
+    const double p0 = scaled_stress[S * 3 * i];
+    const double p1 = scaled_stress[S * (3 * i + 1)];
+    const double p2 = scaled_stress[S * (3 * i + 2)];
     const double fa0 = p0 * b[0] + p1 * b[S * 1] + p2 * b[S * 2];
     const double fa1 = p0 * b[S * 3] + p1 * b[S * 4] + p2 * b[S * 5];
     const double fa2 = p0 * b[S * 6] + p1 * b[S * 7] + p2 * b[S * 8];

@@ -471,9 +471,11 @@ void spread_impl(StencilSet& set, std::span<const double> forces, lb::VectorFiel
   const StencilSet& cset = set;
 #pragma omp parallel num_threads(t)
   {
-    const int me = omp_get_thread_num();
-    if (me < t && split[me] < split[me + 1]) {
-      run(cset, forces.data(), field, split[me], split[me + 1]);
+    // The runtime may give fewer threads than asked: the ranges are disjoint,
+    // so any thread may take any of them.
+    const int nt = omp_get_num_threads();
+    for (int range = omp_get_thread_num(); range < t; range += nt) {
+      if (split[range] < split[range + 1]) run(cset, forces.data(), field, split[range], split[range + 1]);
     }
   }
 }

@@ -4,8 +4,15 @@
 //    lattice-Boltzmann step (Google Benchmark), for the default cell and box:
 //      BM_LatticeStep/threads   lb::collide_stream on the default lattice
 //      BM_ElasticForces         compute_elastic_forces (default mesh)
-//      BM_SpreadForces          spread_forces (local clear + spread)
-//      BM_AdvectCell            advect_cell (interpolate + move)
+//      BM_SpreadForces          spread_forces (local clear + stencils + spread)
+//      BM_AdvectCell            advect_cell (stencils + interpolate + move; one cell alone)
+//      BM_CouplingStep/threads  spread_forces + advect_cells as the scene calls them
+//                               (advect reuses the stencils of the spread)
+//      BM_IbmStencils/threads   ibm::build_stencils of the cell's vertices
+//      BM_IbmSpread/threads     ibm::spread with built stencils
+//      BM_IbmInterpolate/threads ibm::interpolate with built stencils
+//    (counter points_per_cpu_s: vertices per CPU second of the process, all
+//    threads; per CPU second is what a loaded machine can quote)
 //    followed by a Markdown table of the per-step split (medians of timed
 //    blocks, the kernels as the scene calls them: coupling serial, lattice
 //    with the OpenMP default).
@@ -21,6 +28,7 @@
 //
 // The machine may be shared: quote medians and the load.
 #include <benchmark/benchmark.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -172,6 +180,103 @@ void BM_AdvectCell(benchmark::State& state) {
 }
 BENCHMARK(BM_AdvectCell)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
+// CPU seconds of the whole process (every thread), unlike the benchmark's
+// own CPU time, which counts the main thread only.
+double process_cpu_s() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+// Sets points_per_cpu_s and cpu_us_per_iter from process CPU time.
+class ProcessCpu {
+ public:
+  explicit ProcessCpu(benchmark::State& state) : state_(state), t0_(process_cpu_s()) {}
+  void finish(double points) {
+    const double cpu = process_cpu_s() - t0_;
+    const double n = static_cast<double>(state_.iterations());
+    state_.counters["points_per_cpu_s"] = cpu > 0 ? points * n / cpu : 0.0;
+    state_.counters["cpu_us_per_iter"] = n > 0 ? 1e6 * cpu / n : 0.0;
+  }
+
+ private:
+  benchmark::State& state_;
+  double t0_;
+};
+
+void BM_CouplingStep(benchmark::State& state) {
+  Coupled& c = coupled();
+  const int threads = static_cast<int>(state.range(0));
+  coupling::compute_elastic_forces(c.cells[0], 1);
+  const std::vector<double> start = c.cells[0].positions_lattice;
+  ProcessCpu cpu(state);
+  for (auto _ : state) {
+    coupling::spread_forces(c.cells, *c.fluid, options().kernel, threads);
+    benchmark::DoNotOptimize(coupling::advect_cells(c.cells, *c.fluid, options().kernel, threads));
+    std::copy(start.begin(), start.end(), c.cells[0].positions_lattice.begin());
+  }
+  cpu.finish(static_cast<double>(start.size() / 3));
+}
+BENCHMARK(BM_CouplingStep)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+ibm::Grid bench_grid() {
+  return ibm::grid_of(*coupled().fluid);
+}
+
+void BM_IbmStencils(benchmark::State& state) {
+  Coupled& c = coupled();
+  const int threads = static_cast<int>(state.range(0));
+  ibm::StencilSet set;
+  ProcessCpu cpu(state);
+  for (auto _ : state)
+    ibm::build_stencils(options().kernel, bench_grid(), c.cells[0].positions_lattice, set, threads);
+  cpu.finish(static_cast<double>(c.mesh.num_vertices()));
+}
+BENCHMARK(BM_IbmStencils)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+template <class T>
+void spread_with(ibm::StencilSet& set, const std::vector<double>& f, lb::Fluid& fluid, int threads) {
+  ibm::spread<T>(set, f, fluid.force_field<T>(), threads);
+}
+
+void BM_IbmSpread(benchmark::State& state) {
+  Coupled& c = coupled();
+  const int threads = static_cast<int>(state.range(0));
+  coupling::compute_elastic_forces(c.cells[0], 1);
+  ibm::StencilSet set;
+  ibm::build_stencils(options().kernel, bench_grid(), c.cells[0].positions_lattice, set, 1);
+  const bool single = c.fluid->params().precision == lb::Precision::kFloat;
+  ProcessCpu cpu(state);
+  for (auto _ : state) {
+    if (single)
+      spread_with<float>(set, c.cells[0].forces_lattice, *c.fluid, threads);
+    else
+      spread_with<double>(set, c.cells[0].forces_lattice, *c.fluid, threads);
+  }
+  cpu.finish(static_cast<double>(c.mesh.num_vertices()));
+}
+BENCHMARK(BM_IbmSpread)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+void BM_IbmInterpolate(benchmark::State& state) {
+  Coupled& c = coupled();
+  const int threads = static_cast<int>(state.range(0));
+  ibm::StencilSet set;
+  ibm::build_stencils(options().kernel, bench_grid(), c.cells[0].positions_lattice, set, 1);
+  std::vector<double> u(c.cells[0].positions_lattice.size());
+  const lb::Fluid& fluid = *c.fluid;
+  const bool single = fluid.params().precision == lb::Precision::kFloat;
+  ProcessCpu cpu(state);
+  for (auto _ : state) {
+    if (single)
+      ibm::interpolate<float>(set, fluid.velocity_field<float>(), u, threads);
+    else
+      ibm::interpolate<double>(set, fluid.velocity_field<double>(), u, threads);
+    benchmark::DoNotOptimize(u.data());
+  }
+  cpu.finish(static_cast<double>(c.mesh.num_vertices()));
+}
+BENCHMARK(BM_IbmInterpolate)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
 // Median over `blocks` timed blocks of `steps` calls, seconds per call.
 template <class F>
 double median_seconds(F&& f, int blocks, int steps) {
@@ -192,10 +297,11 @@ void print_coupling_table() {
   const double elastic = median_seconds([&] { coupling::compute_elastic_forces(c.cells[0], 1); }, 7, 50);
   const double spread =
       median_seconds([&] { coupling::spread_forces(c.cells, *c.fluid, options().kernel, 1); }, 7, 50);
+  // As the scene: advect_cells right after spread_forces reuses its stencils.
   const double advect = median_seconds(
       [&] {
-        coupling::advect_cell(c.cells[0], *c.fluid, options().kernel, 1);
-        c.cells[0].positions_lattice = start;
+        coupling::advect_cells(c.cells, *c.fluid, options().kernel, 1);
+        std::copy(start.begin(), start.end(), c.cells[0].positions_lattice.begin());
       },
       7, 50);
   const double coupling = elastic + spread + advect;
@@ -212,7 +318,7 @@ void print_coupling_table() {
   row("LB collide-stream (OpenMP default threads)", lattice);
   row("elastic forces", elastic);
   row("spreading (local clear + spread)", spread);
-  row("interpolation + move", advect);
+  row("interpolation + move (stencils of the spread)", advect);
   row("coupling total (elastic + spread + interpolate)", coupling);
 }
 

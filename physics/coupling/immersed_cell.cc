@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace cellflow::coupling {
 
@@ -39,15 +40,18 @@ void zero_force_box(lb::Fluid& fluid, const NodeBox& box) {
   const int span_x = std::min(box.hi[0] - box.lo[0] + 1, nx);
   const int span_z = std::min(box.hi[2] - box.lo[2] + 1, nz);
   const int j_lo = std::max(box.lo[1], 0), j_hi = std::min(box.hi[1], ny - 1);
-  for (int kk = 0; kk < span_z; ++kk) {
-    const int k = ((box.lo[2] + kk) % nz + nz) % nz;
+  if (span_x <= 0 || span_z <= 0 || j_lo > j_hi) return;
+  // The x range as at most two contiguous pieces [i0, i0 + n0) and [0, n1).
+  const int i0 = ((box.lo[0] % nx) + nx) % nx;
+  const int n0 = std::min(span_x, nx - i0), n1 = span_x - n0;
+  int k = ((box.lo[2] % nz) + nz) % nz;
+  for (int kk = 0; kk < span_z; ++kk, k = k + 1 == nz ? 0 : k + 1) {
     for (int j = j_lo; j <= j_hi; ++j) {
-      for (int ii = 0; ii < span_x; ++ii) {
-        const int i = ((box.lo[0] + ii) % nx + nx) % nx;
-        const std::size_t node = fluid.node(i, j, k);
-        f.x[node] = T(0);
-        f.y[node] = T(0);
-        f.z[node] = T(0);
+      const std::size_t row = fluid.node(0, j, k);
+      for (const auto [first, count] : {std::pair{i0, n0}, std::pair{0, n1}}) {
+        std::fill_n(f.x + row + first, count, T(0));
+        std::fill_n(f.y + row + first, count, T(0));
+        std::fill_n(f.z + row + first, count, T(0));
       }
     }
   }
@@ -118,64 +122,59 @@ elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, int thread
   return eval;
 }
 
-std::vector<elastic::ElasticEvaluation> compute_elastic_forces(ImmersedCells& cells, int threads) {
-  std::vector<elastic::ElasticEvaluation> evaluations;
-  evaluations.reserve(cells.size());
-  for (ImmersedCell& cell : cells.cells) evaluations.push_back(compute_elastic_forces(cell, threads));
+const std::vector<elastic::ElasticEvaluation>& compute_elastic_forces(ImmersedCells& cells, int threads) {
+  std::vector<elastic::ElasticEvaluation>& evaluations = cells.workspace.evaluations;
+  evaluations.resize(cells.size());
+  for (std::size_t i = 0; i < cells.size(); ++i) evaluations[i] = compute_elastic_forces(cells[i], threads);
   return evaluations;
 }
 
 namespace {
 
-// Zeroes the union of the previous supports, then spreads each cell in order.
+// The points a cell couples at: its vertices, or its markers (placed here)
+// where marker_scale != 1.
+const std::vector<double>& coupled_points(ImmersedCell& cell) {
+  if (!scaled_markers(cell)) return cell.positions_lattice;
+  place_markers(cell);
+  return cell.markers_lattice;
+}
+
+// Zeroes the union of the previous supports, then spreads the points of all
+// cells in one pass.
 template <class T>
 void spread_all(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
   const ibm::Grid grid = ibm::grid_of(fluid);
   const int width = ibm::kernel_width(kernel);
+  CouplingWorkspace& ws = cells.workspace;
   for (const ImmersedCell& cell : cells.cells) zero_force_box<T>(fluid, cell.last_support);
+  std::size_t total = 0;
+  for (const ImmersedCell& cell : cells.cells) total += cell.positions_lattice.size();
+  ws.points.resize(total);
+  ws.forces.resize(total);
+  std::size_t at = 0;
   for (ImmersedCell& cell : cells.cells) {
+    const std::vector<double>& points = coupled_points(cell);
+    const std::size_t n = points.size();
+    std::copy(points.begin(), points.end(), ws.points.begin() + static_cast<std::ptrdiff_t>(at));
     if (scaled_markers(cell)) {
       // F_m = F / s at X_m = c + s (X - c): the same first moment sum F (X - c).
-      place_markers(cell);
-      cell.marker_forces.resize(cell.forces_lattice.size());
-      for (std::size_t i = 0; i < cell.forces_lattice.size(); ++i) {
-        cell.marker_forces[i] = cell.forces_lattice[i] / cell.marker_scale;
-      }
-      cell.last_support = support_of(cell.markers_lattice, width);
-      ibm::spread<T>(kernel, grid, cell.markers_lattice, cell.marker_forces, fluid.force_field<T>(), threads);
-      continue;
+      for (std::size_t i = 0; i < n; ++i) ws.forces[at + i] = cell.forces_lattice[i] / cell.marker_scale;
+    } else {
+      std::copy(cell.forces_lattice.begin(), cell.forces_lattice.end(),
+                ws.forces.begin() + static_cast<std::ptrdiff_t>(at));
     }
-    cell.last_support = support_of(cell.positions_lattice, width);
-    ibm::spread<T>(kernel, grid, cell.positions_lattice, cell.forces_lattice, fluid.force_field<T>(),
-                   threads);
+    cell.last_support = support_of(points, width);
+    at += n;
   }
+  ibm::build_stencils(kernel, grid, ws.points, ws.stencils, threads);
+  ws.stencils_valid = true;
+  ibm::spread<T>(ws.stencils, ws.forces, fluid.force_field<T>(), threads);
 }
 
-}  // namespace
-
-// F(x) = sum_cells sum_p f_p delta_h(x - X_p)   (spreading, paper section 7)
-void spread_forces(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
-  if (fluid.params().precision == lb::Precision::kFloat) {
-    spread_all<float>(cells, fluid, kernel, threads);
-  } else {
-    spread_all<double>(cells, fluid, kernel, threads);
-  }
-}
-
-// U_p = sum_x u(x) delta_h(x - X_p);  X_p += U_p dt   (interpolation, paper section 7)
-AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
-  const ibm::Grid grid = ibm::grid_of(fluid);
-  const bool scaled = scaled_markers(cell);
-  if (scaled) place_markers(cell);
-  const std::vector<double>& at = scaled ? cell.markers_lattice : cell.positions_lattice;
-  if (fluid.params().precision == lb::Precision::kFloat) {
-    ibm::interpolate<float>(kernel, grid, fluid.velocity_field<float>(), at, cell.velocities_lattice,
-                            threads);
-  } else {
-    ibm::interpolate<double>(kernel, grid, fluid.velocity_field<double>(), at, cell.velocities_lattice,
-                             threads);
-  }
-  if (scaled) {
+// After the velocities of the coupled points are in cell.velocities_lattice:
+// undo the marker scaling, move the vertices (X += U dt) and report.
+AdvectReport move_cell(ImmersedCell& cell) {
+  if (scaled_markers(cell)) {
     // U = U_c + (U_m - U_c) / s, U_c the mean marker velocity.
     const std::size_t nv = cell.velocities_lattice.size() / 3;
     double uc[3] = {0.0, 0.0, 0.0};
@@ -214,11 +213,74 @@ AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel
   return report;
 }
 
-std::vector<AdvectReport> advect_cells(ImmersedCells& cells, const lb::Fluid& fluid, ibm::Kernel kernel,
-                                       int threads) {
-  std::vector<AdvectReport> reports;
-  reports.reserve(cells.size());
-  for (ImmersedCell& cell : cells.cells) reports.push_back(advect_cell(cell, fluid, kernel, threads));
+template <class T>
+void interpolate_all(ImmersedCells& cells, const lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
+  CouplingWorkspace& ws = cells.workspace;
+  const ibm::Grid grid = ibm::grid_of(fluid);
+  std::size_t total = 0;
+  for (const ImmersedCell& cell : cells.cells) total += cell.positions_lattice.size();
+  ws.query.resize(total);
+  std::size_t at = 0;
+  for (ImmersedCell& cell : cells.cells) {
+    const std::vector<double>& points = coupled_points(cell);
+    std::copy(points.begin(), points.end(), ws.query.begin() + static_cast<std::ptrdiff_t>(at));
+    at += points.size();
+  }
+  const ibm::Grid& built = ws.stencils.grid;
+  const bool reuse = ws.stencils_valid && ws.stencils.kernel == kernel && built.nx == grid.nx &&
+                     built.ny == grid.ny && built.nz == grid.nz && built.walls_y == grid.walls_y &&
+                     ws.query == ws.points;
+  if (!reuse) {
+    ibm::build_stencils(kernel, grid, ws.query, ws.stencils, threads);
+    ws.points = ws.query;
+    ws.stencils_valid = true;
+  }
+  ws.velocities.resize(total);
+  ibm::interpolate<T>(ws.stencils, fluid.velocity_field<T>(), ws.velocities, threads);
+  at = 0;
+  for (ImmersedCell& cell : cells.cells) {
+    const std::size_t n = cell.velocities_lattice.size();
+    std::copy_n(ws.velocities.begin() + static_cast<std::ptrdiff_t>(at), n, cell.velocities_lattice.begin());
+    at += n;
+  }
+}
+
+}  // namespace
+
+// F(x) = sum_cells sum_p f_p delta_h(x - X_p)   (spreading, paper section 7)
+void spread_forces(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
+  if (fluid.params().precision == lb::Precision::kFloat) {
+    spread_all<float>(cells, fluid, kernel, threads);
+  } else {
+    spread_all<double>(cells, fluid, kernel, threads);
+  }
+}
+
+// U_p = sum_x u(x) delta_h(x - X_p);  X_p += U_p dt   (interpolation, paper section 7)
+AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel kernel, int threads) {
+  const ibm::Grid grid = ibm::grid_of(fluid);
+  const std::vector<double>& at = coupled_points(cell);
+  if (fluid.params().precision == lb::Precision::kFloat) {
+    ibm::interpolate<float>(kernel, grid, fluid.velocity_field<float>(), at, cell.velocities_lattice,
+                            threads);
+  } else {
+    ibm::interpolate<double>(kernel, grid, fluid.velocity_field<double>(), at, cell.velocities_lattice,
+                             threads);
+  }
+  return move_cell(cell);
+}
+
+// U_p = sum_x u(x) delta_h(x - X_p);  X_p += U_p dt   (interpolation, paper section 7)
+const std::vector<AdvectReport>& advect_cells(ImmersedCells& cells, const lb::Fluid& fluid,
+                                              ibm::Kernel kernel, int threads) {
+  if (fluid.params().precision == lb::Precision::kFloat) {
+    interpolate_all<float>(cells, fluid, kernel, threads);
+  } else {
+    interpolate_all<double>(cells, fluid, kernel, threads);
+  }
+  std::vector<AdvectReport>& reports = cells.workspace.reports;
+  reports.resize(cells.size());
+  for (std::size_t i = 0; i < cells.size(); ++i) reports[i] = move_cell(cells[i]);
   return reports;
 }
 

@@ -51,10 +51,32 @@ struct ImmersedCell {
   // mesh, is shrunk by that fraction. 1: markers on the vertices (plain IBM).
   double marker_scale = 1.0;
   std::vector<double> markers_lattice;  // marker positions of the last spread / advect (scale != 1)
-  std::vector<double> marker_forces;    // F / s (scale != 1)
   double spacing_m = 0.0;               // dx
   double newton_to_lattice = 0.0;       // F_lb = F dt^2 / (m dx) per newton
   NodeBox last_support;                 // nodes this cell's last spread touched
+};
+
+struct AdvectReport {
+  double max_speed_lattice = 0.0;  // NaN if a velocity is NaN
+  double lo[3] = {0, 0, 0};        // bounding box of the moved vertices, lattice units
+  double hi[3] = {0, 0, 0};
+};
+
+// Scratch of the coupling of all cells, reused every step (no allocation once
+// sized): the coupled points (vertices or markers) of every cell in one
+// array, cell after cell, their forces and interpolated velocities, and the
+// kernel stencils of the last spread. advect_cells reuses those stencils when
+// the points are bit for bit those of the spread (the flow step spreads at
+// X(t) and interpolates u(t) at the same X(t)), else it builds new ones.
+struct CouplingWorkspace {
+  std::vector<double> points;      // of the last spread (stencils are built for these)
+  std::vector<double> forces;      // of the last spread
+  std::vector<double> query;       // of the last advect
+  std::vector<double> velocities;  // interpolated at `query`
+  ibm::StencilSet stencils;
+  bool stencils_valid = false;
+  std::vector<elastic::ElasticEvaluation> evaluations;
+  std::vector<AdvectReport> reports;
 };
 
 // The cells immersed in one fluid, in a fixed order (the order of spreading
@@ -62,6 +84,7 @@ struct ImmersedCell {
 // through the fluid.
 struct ImmersedCells {
   std::vector<ImmersedCell> cells;
+  CouplingWorkspace workspace;
 
   std::size_t size() const { return cells.size(); }
   ImmersedCell& operator[](std::size_t i) { return cells[i]; }
@@ -84,31 +107,30 @@ ImmersedCell& add_cell(ImmersedCells& cells, const mesh::TetMesh& mesh, const el
 // energy (J) and the first inverted tetrahedron.
 elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, int threads);
 
-// compute_elastic_forces of every cell; one evaluation per cell, in order.
-std::vector<elastic::ElasticEvaluation> compute_elastic_forces(ImmersedCells& cells, int threads);
+// compute_elastic_forces of every cell; one evaluation per cell, in order
+// (held in cells.workspace until the next call).
+const std::vector<elastic::ElasticEvaluation>& compute_elastic_forces(ImmersedCells& cells, int threads);
 
 // F(x) = sum_cells sum_p f_p delta_h(x - X_p)   (spreading, paper section 7; no equation number).
 // Clears the force field on the union of the nodes the previous spreads of
-// all cells touched (and only there), then spreads every cell's
-// forces_lattice in order and records each cell's new support. The fluid
-// must have a force field, zero elsewhere (as make_fluid leaves it).
+// all cells touched (and only there), then spreads the forces_lattice of all
+// cells in one pass (ibm::spread over the points of every cell; the order of
+// additions at a node is fixed and independent of the thread count) and
+// records each cell's new support. The fluid must have a force field, zero
+// elsewhere (as make_fluid leaves it).
 void spread_forces(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int threads);
-
-struct AdvectReport {
-  double max_speed_lattice = 0.0;  // NaN if a velocity is NaN
-  double lo[3] = {0, 0, 0};        // bounding box of the moved vertices, lattice units
-  double hi[3] = {0, 0, 0};
-};
 
 // U_p = sum_x u(x) delta_h(x - X_p), then X_p += U_p dt   (interpolation, paper section 7)
 // (explicit Euler, dt = 1): interpolates the fluid's velocity field at the
 // cell's vertices and moves them by one time step.
 AdvectReport advect_cell(ImmersedCell& cell, const lb::Fluid& fluid, ibm::Kernel kernel, int threads);
 
-// advect_cell of every cell, each by its own interpolated velocity; one
-// report per cell, in order.
-std::vector<AdvectReport> advect_cells(ImmersedCells& cells, const lb::Fluid& fluid, ibm::Kernel kernel,
-                                       int threads);
+// advect_cell of every cell, each by its own interpolated velocity, in one
+// interpolation pass over the points of all cells (with the stencils of the
+// last spread_forces where the points have not moved since); one report per
+// cell, in order (held in cells.workspace until the next call).
+const std::vector<AdvectReport>& advect_cells(ImmersedCells& cells, const lb::Fluid& fluid,
+                                              ibm::Kernel kernel, int threads);
 
 // x = X dx: positions in metres in box coordinates (walls at y = 0 and H).
 std::vector<double> box_positions_m(const ImmersedCell& cell);

@@ -29,6 +29,7 @@
 
 #include <span>
 #include <string_view>
+#include <vector>
 
 #include "physics/core/status.h"
 #include "physics/lb/fluid.h"
@@ -65,15 +66,59 @@ Grid grid_of(const lb::Fluid& fluid);
 // Points and per-point vectors are interleaved x0 y0 z0 x1 ... in lattice
 // units. `threads` <= 0: the OpenMP default.
 
+// The 3-D stencil of one point, separable: delta(x - X) = wx[a] wy[b] wz[c]
+// on nodes (x[a], y[b], z[c]) (3 x 4 weights, not 64). Indices are wrapped
+// into the lattice; in y only rows [y_begin, y_end) lie in the fluid.
+struct PointStencil {
+  double wx[4] = {0, 0, 0, 0}, wy[4] = {0, 0, 0, 0}, wz[4] = {0, 0, 0, 0};
+  int x[4] = {0, 0, 0, 0}, y[4] = {0, 0, 0, 0}, z[4] = {0, 0, 0, 0};
+  int y_begin = 0, y_end = 0;
+  bool finite = false;        // false: a coordinate is NaN or infinite (NaN velocity, no force)
+  bool x_contiguous = false;  // x[a] = x[0] + a (no periodic wrap inside the stencil)
+};
+
+// The stencils of a set of points, computed once (build_stencils) and used by
+// both spreading and interpolation at the same positions (the flow step
+// spreads at X(t) and interpolates u(t) at the same X(t)). Also holds the
+// points' order by z plane that makes spreading race-free without atomics.
+// Rebuilding for the same number of points allocates nothing.
+struct StencilSet {
+  Kernel kernel = Kernel::kPeskin4;
+  Grid grid;
+  std::vector<PointStencil> points;
+  // Finite points by wrapped first z plane (stable): those of plane k are
+  // order[bin_begin[k] .. bin_begin[k + 1]).
+  std::vector<int> order;
+  std::vector<int> bin_begin;
+  std::vector<int> bin_fill;     // scratch of the counting sort
+  std::vector<double> work;      // scratch: spreading work per z plane
+  std::vector<int> plane_split;  // scratch: z planes of each thread
+};
+
+void build_stencils(Kernel kernel, const Grid& grid, std::span<const double> points, StencilSet& stencils,
+                    int threads = 0);
+
+// values[p] = sum_x w_p(x) field(x) with the stencils of `stencils`.
+template <class T>
+void interpolate(const StencilSet& stencils, lb::VectorField<const T> field, std::span<double> values,
+                 int threads = 0);
+
+// field(x) += sum_p w_p(x) forces[p]. Race-free in parallel without atomics:
+// each thread owns a range of z planes and adds, for every point whose
+// stencil reaches them, the part of the stencil in its planes. At every node
+// the additions come in a fixed order (points by first z plane, then by
+// index), so the result does not depend on the thread count.
+template <class T>
+void spread(StencilSet& stencils, std::span<const double> forces, lb::VectorField<T> field, int threads = 0);
+
+// One-shot forms (build_stencils into a temporary set, then the above).
+
 // values[p] = sum_x w_p(x) field(x).
 template <class T>
 void interpolate(Kernel kernel, const Grid& grid, lb::VectorField<const T> field,
                  std::span<const double> points, std::span<double> values, int threads = 0);
 
-// field(x) += sum_p w_p(x) forces[p]. Race-free in parallel: points are binned
-// into y slabs at least one stencil wide, and slabs of one parity are spread
-// concurrently; the order of additions at a node, and so the result, does not
-// depend on the thread count.
+// field(x) += sum_p w_p(x) forces[p]; as spread above.
 template <class T>
 void spread(Kernel kernel, const Grid& grid, std::span<const double> points, std::span<const double> forces,
             lb::VectorField<T> field, int threads = 0);

@@ -430,6 +430,59 @@ TEST(ImmersedCells, AdvectMovesEachCellByItsOwnInterpolatedVelocity) {
   EXPECT_GT(mean_dx[1], 0.0);
 }
 
+// advect_cells interpolates with the stencils of the last spread_forces when
+// the points have not moved since (the flow step), and with new ones when
+// they have: in a sheared flow that also varies along z, the vertices end
+// bit for bit where advect_cell (fresh stencils, one cell alone) puts them,
+// with the points unchanged, with the points moved after the spread, and
+// with scaled markers.
+TEST(ImmersedCells, AdvectReusesTheSpreadsStencilsOnlyForUnmovedPoints) {
+  const Cell a = make_cell(400);
+  const Cell b = make_cell(400);
+  const units::Units u = test_units();
+  lb::Fluid fluid = make_test_fluid(lb::Precision::kFloat);
+  {
+    std::vector<double> ux(fluid.num_nodes(), 0.0), uy(fluid.num_nodes(), 0.0), zero(fluid.num_nodes(), 0.0);
+    for (int k = 0; k < kBox; ++k) {
+      for (int j = 0; j < kBox; ++j) {
+        for (int i = 0; i < kBox; ++i) {
+          ux[fluid.node(i, j, k)] = 1e-3 * (j + 0.5 - 0.5 * kBox) + 1e-4 * std::sin(0.5 * k);
+          uy[fluid.node(i, j, k)] = 2e-4 * std::cos(0.3 * i + 0.2 * k);
+        }
+      }
+    }
+    lb::set_equilibrium(fluid, {}, ux, uy, zero);
+    lb::update_velocity_field(fluid);
+  }
+  const double below[3] = {0.5 * kBox, 8.0, 0.5 * kBox}, above[3] = {0.5 * kBox + 0.4, 16.0, 0.5 * kBox};
+  for (const double scale : {1.0, 0.9}) {
+    for (const bool move_after_spread : {false, true}) {
+      ImmersedCells cells;
+      add_cell(cells, a.mesh, a.body, u, below);
+      add_cell(cells, b.mesh, b.body, u, above);
+      for (ImmersedCell& cell : cells.cells) cell.marker_scale = scale;
+      // A deformed state, so that there are forces to spread.
+      for (double& x : cells[1].positions_lattice) x *= 1.0 + 1e-3;
+      compute_elastic_forces(cells, 1);
+      spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 2);
+      if (move_after_spread) {
+        for (std::size_t v = 0; v < cells[0].positions_lattice.size() / 3; ++v) {
+          cells[0].positions_lattice[3 * v + 1] += 0.3;
+        }
+      }
+      ImmersedCells alone[2] = {only(cells, 0), only(cells, 1)};
+      const std::vector<AdvectReport>& reports = advect_cells(cells, fluid, ibm::Kernel::kPeskin4, 2);
+      ASSERT_EQ(reports.size(), 2u);
+      for (std::size_t i = 0; i < 2; ++i) {
+        const AdvectReport single = advect_cell(alone[i][0], fluid, ibm::Kernel::kPeskin4, 1);
+        EXPECT_EQ(cells[i].positions_lattice, alone[i][0].positions_lattice)
+            << "cell " << i << " scale " << scale << " moved " << move_after_spread;
+        EXPECT_EQ(reports[i].max_speed_lattice, single.max_speed_lattice);
+      }
+    }
+  }
+}
+
 // Scaled markers (ImmersedCell::marker_scale, the shear-flow scene's
 // hydrodynamic radius correction): the lattice receives the first moment
 // sum F (X - c) of the vertex forces (the stresslet and the torque) to

@@ -243,7 +243,7 @@ void time_loop(Run& run, lb::Fluid& fluid, lb::LeesEdwards* lees_edwards, ShearF
     }
     // Elastic forces at the vertices.
     const auto t0 = Clock::now();
-    const std::vector<elastic::ElasticEvaluation> evals =
+    const std::vector<elastic::ElasticEvaluation>& evals =
         coupling::compute_elastic_forces(cells, coupling_threads);
     for (const elastic::ElasticEvaluation& eval : evals) {
       if (eval.first_inverted_tet >= 0) {
@@ -276,7 +276,7 @@ void time_loop(Run& run, lb::Fluid& fluid, lb::LeesEdwards* lees_edwards, ShearF
     result.lattice_s += std::chrono::duration<double>(t3 - t2).count();
 
     // Interpolate u(t) at the vertices and move them: X += U dt.
-    const std::vector<coupling::AdvectReport> reports =
+    const std::vector<coupling::AdvectReport>& reports =
         coupling::advect_cells(cells, fluid, kernel, coupling_threads);
     ++step;
     result.coupling_s += seconds_since(t3);

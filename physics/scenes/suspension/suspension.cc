@@ -239,7 +239,7 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
     }
     // Elastic forces at the vertices of every cell.
     const auto t0 = Clock::now();
-    const std::vector<elastic::ElasticEvaluation> evals = coupling::compute_elastic_forces(cells, threads);
+    const std::vector<elastic::ElasticEvaluation>& evals = coupling::compute_elastic_forces(cells, threads);
     for (std::size_t c = 0; c < evals.size(); ++c) {
       const elastic::ElasticEvaluation& eval = evals[c];
       if (eval.first_inverted_tet >= 0) {
@@ -278,7 +278,8 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
     const auto t4 = Clock::now();
     result.lattice_s += std::chrono::duration<double>(t4 - t3).count();
 
-    const std::vector<coupling::AdvectReport> reports = coupling::advect_cells(cells, fluid, kernel, threads);
+    const std::vector<coupling::AdvectReport>& reports =
+        coupling::advect_cells(cells, fluid, kernel, threads);
     ++step;
     result.coupling_s += seconds_since(t4);
     for (std::size_t c = 0; c < reports.size(); ++c) {

@@ -114,6 +114,7 @@ TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
       }
     }
     g_rows_.assign(3 * patches.size(), 0.0);
+    g_columns_.assign(3 * patches.size(), 0.0);
     vertex_coefficient_.assign(num_vertices, 0.0);
     vertex_scratch_.resize(num_vertices);
   }
@@ -235,43 +236,65 @@ void TangentAssembler::update_volumetric_operator(const double* y) {
     const double volume = body.vertex_volume_m3[a];
     vertex_coefficient_[a] = volume > 0.0 ? body.vertex_bulk_volume_j[a] / (volume * volume) : 0.0;
   }
+  for (std::size_t k = 0; k < patches_.size(); ++k) {
+    const double* gab = g_rows_.data() + 3 * mirror_entry_[k];
+    for (int i = 0; i < 3; ++i) g_columns_[3 * k + i] = gab[i];
+  }
+}
+
+void TangentAssembler::volumetric_gather(const double* x, std::int64_t begin, std::int64_t end,
+                                         double* z) const {
+  const std::int64_t* offsets = patch_offsets_.data();
+  const std::int32_t* patches = patches_.data();
+  const double* g = g_rows_.data();
+  for (std::int64_t a = begin; a < end; ++a) {
+    double sum = 0.0;
+    for (std::int64_t k = offsets[a]; k < offsets[a + 1]; ++k) {
+      const double* xw = x + 3 * static_cast<std::int64_t>(patches[k]);
+      sum += g[3 * k] * xw[0] + g[3 * k + 1] * xw[1] + g[3 * k + 2] * xw[2];
+    }
+    z[a] = vertex_coefficient_[a] * sum;
+  }
+}
+
+void TangentAssembler::add_volumetric_scatter(const double* z, std::int64_t begin, std::int64_t end,
+                                              double* out) const {
+  const std::int64_t* offsets = patch_offsets_.data();
+  const std::int32_t* patches = patches_.data();
+  const double* gt = g_columns_.data();
+  for (std::int64_t b = begin; b < end; ++b) {
+    double o0 = 0.0, o1 = 0.0, o2 = 0.0;
+    for (std::int64_t k = offsets[b]; k < offsets[b + 1]; ++k) {
+      const double za = z[patches[k]];
+      o0 += za * gt[3 * k];  // g_a[b], a = patches[k]
+      o1 += za * gt[3 * k + 1];
+      o2 += za * gt[3 * k + 2];
+    }
+    out[3 * b] += o0;
+    out[3 * b + 1] += o1;
+    out[3 * b + 2] += o2;
+  }
 }
 
 void TangentAssembler::add_volumetric_product(const double* x, double* out) const {
   if (!has_volumetric_operator()) return;
   const std::int64_t num_vertices = static_cast<std::int64_t>(body_->num_vertices);
-  const std::int64_t* offsets = patch_offsets_.data();
-  const std::int32_t* patches = patches_.data();
-  const double* g = g_rows_.data();
   double* z = vertex_scratch_.data();
-  // G^T (C (G x)): two row-wise gathers; the rows of G^T are the entries
-  // g_a[b] read through mirror_entry_ (any thread count, same numbers).
+  // G^T (C (G x)): two row-wise passes, the second over the stored rows of
+  // G^T (any thread count, same numbers).
   const int team = team_size(threads_, 5 * num_vertices, kMinForceTetsPerThread);
+  if (team == 1) {
+    volumetric_gather(x, 0, num_vertices, z);
+    add_volumetric_scatter(z, 0, num_vertices, out);
+    return;
+  }
 #pragma omp parallel num_threads(team)
   {
-#pragma omp for schedule(static)
-    for (std::int64_t a = 0; a < num_vertices; ++a) {
-      double sum = 0.0;
-      for (std::int64_t k = offsets[a]; k < offsets[a + 1]; ++k) {
-        const double* xw = x + 3 * static_cast<std::int64_t>(patches[k]);
-        sum += g[3 * k] * xw[0] + g[3 * k + 1] * xw[1] + g[3 * k + 2] * xw[2];
-      }
-      z[a] = vertex_coefficient_[a] * sum;
-    }
-#pragma omp for schedule(static)
-    for (std::int64_t b = 0; b < num_vertices; ++b) {
-      double o0 = 0.0, o1 = 0.0, o2 = 0.0;
-      for (std::int64_t k = offsets[b]; k < offsets[b + 1]; ++k) {
-        const double za = z[patches[k]];
-        const double* gab = g + 3 * mirror_entry_[k];  // g_a[b], a = patches[k]
-        o0 += za * gab[0];
-        o1 += za * gab[1];
-        o2 += za * gab[2];
-      }
-      out[3 * b] += o0;
-      out[3 * b + 1] += o1;
-      out[3 * b + 2] += o2;
-    }
+    const std::int64_t rank = omp_get_thread_num(), size = omp_get_num_threads();
+    const std::int64_t begin = num_vertices * rank / size, end = num_vertices * (rank + 1) / size;
+    volumetric_gather(x, begin, end, z);
+#pragma omp barrier
+    add_volumetric_scatter(z, begin, end, out);
   }
 }
 
@@ -282,7 +305,7 @@ void TangentAssembler::add_volumetric_diagonal_blocks(double* blocks) const {
     double* block = blocks + 9 * b;
     for (std::int64_t k = patch_offsets_[b]; k < patch_offsets_[b + 1]; ++k) {
       const double c = vertex_coefficient_[patches_[k]];
-      const double* gab = g_rows_.data() + 3 * mirror_entry_[k];
+      const double* gab = g_columns_.data() + 3 * k;  // g_a[b], a = patches_[k]
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) block[3 * i + j] += c * gab[i] * gab[j];
       }

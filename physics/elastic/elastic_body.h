@@ -154,8 +154,8 @@ class TangentAssembler {
  private:
   template <bool kMooneyRivlin>
   ElasticEvaluation assemble_impl(const double* positions_m, double* forces_n);
-  // kNodalAverage: the rows g_a of G and C at positions_m.
-  void update_volumetric_operator(const double* positions_m);
+  // kNodalAverage: the rows g_a of G and C at positions_m, on `team` threads.
+  void update_volumetric_operator(const double* positions_m, int team);
 
   const ElasticBody* body_;
   Eigen::SparseMatrix<double> stiffness_;

@@ -128,7 +128,7 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
   const ElasticBody& body = *body_;
   const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
   double* values = stiffness_.valuePtr();
-  std::fill_n(values, stiffness_.nonZeros(), 0.0);
+  const std::int64_t num_values = stiffness_.nonZeros();
   const std::int32_t* tets = body.tets.data();
   const std::int64_t* slots = slot_.data();
   const int team = team_size(threads_, num_tets, kMinTangentTetsPerThread);
@@ -171,6 +171,7 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
   double energy = volumetric_energy;
   std::int64_t first_inverted = kNoTet;
   if (team == 1) {
+    std::fill_n(values, num_values, 0.0);
     for (std::int64_t t = 0; t < num_tets; ++t) add_tet(t, energy, first_inverted);
   } else {
     // Groups of one colour share no vertex: they scatter in parallel without races.
@@ -184,61 +185,74 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
     group_energy_.assign(colouring_.order.size(), 0.0);
     double* group_energy = group_energy_.data();
 #pragma omp parallel num_threads(team) reduction(min : first_inverted)
-    for (std::int64_t c = 0; c < num_colours; ++c) {
+    {
+#pragma omp for schedule(static)
+      for (std::int64_t s = 0; s < num_values; ++s) values[s] = 0.0;
+      for (std::int64_t c = 0; c < num_colours; ++c) {
 #pragma omp for schedule(dynamic, 1)
-      for (std::int64_t k = colour_offsets[c]; k < colour_offsets[c + 1]; ++k) {
-        const std::int64_t group = order[k];
-        const std::int64_t end = std::min(num_tets, (group + 1) * group_size);
-        for (std::int64_t t = group * group_size; t < end; ++t)
-          add_tet(t, group_energy[group], first_inverted);
+        for (std::int64_t k = colour_offsets[c]; k < colour_offsets[c + 1]; ++k) {
+          const std::int64_t group = order[k];
+          const std::int64_t end = std::min(num_tets, (group + 1) * group_size);
+          for (std::int64_t t = group * group_size; t < end; ++t)
+            add_tet(t, group_energy[group], first_inverted);
+        }
       }
     }
     for (const double e : group_energy_) energy += e;
   }
-  if (nodal && first_inverted == kNoTet) update_volumetric_operator(y);
+  if (nodal && first_inverted == kNoTet) update_volumetric_operator(y, team);
   ElasticEvaluation result;
   result.energy_j = energy;
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;
 }
 
-void TangentAssembler::update_volumetric_operator(const double* y) {
+void TangentAssembler::update_volumetric_operator(const double* y, int team) {
   const ElasticBody& body = *body_;
   const std::int32_t* tets = body.tets.data();
-  std::fill(g_rows_.begin(), g_rows_.end(), 0.0);
-  for (std::size_t a = 0; a < body.num_vertices; ++a) {
-    // g_a = sum_{t at a} (1/4) dv_t/dy; with D the deformed edge matrix
-    // (columns y_k - y_4), dv_t/dy_i^k = cof(D)_ik / 6 (k = 1..3) and
-    // dv_t/dy^4 = -sum_k dv_t/dy^k.
-    double* row = g_rows_.data() + 3 * patch_offsets_[a];
-    for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k) {
-      const std::int32_t* v = tets + 4 * static_cast<std::int64_t>(body.vertex_tets[k]);
-      const double* y3 = y + 3 * static_cast<std::int64_t>(v[3]);
-      double d[9];
-      for (int c = 0; c < 3; ++c) {
-        const double* yc = y + 3 * static_cast<std::int64_t>(v[c]);
-        for (int i = 0; i < 3; ++i) d[3 * i + c] = yc[i] - y3[i];
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body.num_vertices);
+  const std::int64_t num_entries = static_cast<std::int64_t>(patches_.size());
+  // Row a is written by the thread of a alone; G^T is copied once every row is done.
+#pragma omp parallel num_threads(team)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t a = 0; a < num_vertices; ++a) {
+      double* row = g_rows_.data() + 3 * patch_offsets_[a];
+      std::fill(row, g_rows_.data() + 3 * patch_offsets_[a + 1], 0.0);
+      // g_a = sum_{t at a} (1/4) dv_t/dy; with D the deformed edge matrix
+      // (columns y_k - y_4), dv_t/dy_i^k = cof(D)_ik / 6 (k = 1..3) and
+      // dv_t/dy^4 = -sum_k dv_t/dy^k.
+      for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k) {
+        const std::int32_t* v = tets + 4 * static_cast<std::int64_t>(body.vertex_tets[k]);
+        const double* y3 = y + 3 * static_cast<std::int64_t>(v[3]);
+        double d[9];
+        for (int c = 0; c < 3; ++c) {
+          const double* yc = y + 3 * static_cast<std::int64_t>(v[c]);
+          for (int i = 0; i < 3; ++i) d[3 * i + c] = yc[i] - y3[i];
+        }
+        const double cof[9] = {
+            d[4] * d[8] - d[5] * d[7], d[5] * d[6] - d[3] * d[8], d[3] * d[7] - d[4] * d[6],
+            d[2] * d[7] - d[1] * d[8], d[0] * d[8] - d[2] * d[6], d[1] * d[6] - d[0] * d[7],
+            d[1] * d[5] - d[2] * d[4], d[2] * d[3] - d[0] * d[5], d[0] * d[4] - d[1] * d[3]};
+        const std::int32_t* local = patch_local_.data() + 4 * k;
+        constexpr double kScale = 1.0 / 24.0;  // 1/4 (vertex share) x 1/6 (tet volume)
+        for (int i = 0; i < 3; ++i) {
+          const double h0 = kScale * cof[3 * i], h1 = kScale * cof[3 * i + 1], h2 = kScale * cof[3 * i + 2];
+          row[3 * local[0] + i] += h0;
+          row[3 * local[1] + i] += h1;
+          row[3 * local[2] + i] += h2;
+          row[3 * local[3] + i] -= h0 + h1 + h2;
+        }
       }
-      const double cof[9] = {d[4] * d[8] - d[5] * d[7], d[5] * d[6] - d[3] * d[8], d[3] * d[7] - d[4] * d[6],
-                             d[2] * d[7] - d[1] * d[8], d[0] * d[8] - d[2] * d[6], d[1] * d[6] - d[0] * d[7],
-                             d[1] * d[5] - d[2] * d[4], d[2] * d[3] - d[0] * d[5], d[0] * d[4] - d[1] * d[3]};
-      const std::int32_t* local = patch_local_.data() + 4 * k;
-      constexpr double kScale = 1.0 / 24.0;  // 1/4 (vertex share) x 1/6 (tet volume)
-      for (int i = 0; i < 3; ++i) {
-        const double h0 = kScale * cof[3 * i], h1 = kScale * cof[3 * i + 1], h2 = kScale * cof[3 * i + 2];
-        row[3 * local[0] + i] += h0;
-        row[3 * local[1] + i] += h1;
-        row[3 * local[2] + i] += h2;
-        row[3 * local[3] + i] -= h0 + h1 + h2;
-      }
+      // C_a = (kappa V)_a / V_a^2: d^2/dv_a^2 of (kappa V)_a / 2 (v_a / V_a - 1)^2
+      const double volume = body.vertex_volume_m3[a];
+      vertex_coefficient_[a] = volume > 0.0 ? body.vertex_bulk_volume_j[a] / (volume * volume) : 0.0;
     }
-    // C_a = (kappa V)_a / V_a^2: d^2/dv_a^2 of (kappa V)_a / 2 (v_a / V_a - 1)^2
-    const double volume = body.vertex_volume_m3[a];
-    vertex_coefficient_[a] = volume > 0.0 ? body.vertex_bulk_volume_j[a] / (volume * volume) : 0.0;
-  }
-  for (std::size_t k = 0; k < patches_.size(); ++k) {
-    const double* gab = g_rows_.data() + 3 * mirror_entry_[k];
-    for (int i = 0; i < 3; ++i) g_columns_[3 * k + i] = gab[i];
+#pragma omp for schedule(static)
+    for (std::int64_t k = 0; k < num_entries; ++k) {
+      const double* gab = g_rows_.data() + 3 * mirror_entry_[k];
+      for (int i = 0; i < 3; ++i) g_columns_[3 * k + i] = gab[i];
+    }
   }
 }
 
@@ -301,7 +315,10 @@ void TangentAssembler::add_volumetric_product(const double* x, double* out) cons
 void TangentAssembler::add_volumetric_diagonal_blocks(double* blocks) const {
   if (!has_volumetric_operator()) return;
   // block_b = sum_{a in patch of b} C_a g_a[b] g_a[b]^T
-  for (std::size_t b = 0; b < body_->num_vertices; ++b) {
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body_->num_vertices);
+  const int team = team_size(threads_, 5 * num_vertices, kMinForceTetsPerThread);
+#pragma omp parallel for num_threads(team) schedule(static)
+  for (std::int64_t b = 0; b < num_vertices; ++b) {
     double* block = blocks + 9 * b;
     for (std::int64_t k = patch_offsets_[b]; k < patch_offsets_[b + 1]; ++k) {
       const double c = vertex_coefficient_[patches_[k]];

@@ -304,10 +304,12 @@ void EquilibriumSolver::build_preconditioner(double shift) {
     pc.factor_valid = pc.incomplete_cholesky.info() == Eigen::Success;
     return;
   }
-  const std::size_t nv = body_->num_vertices;
-  pc.block_inverse.resize(9 * nv);
+  const std::int64_t nv = static_cast<std::int64_t>(body_->num_vertices);
+  pc.block_inverse.resize(static_cast<std::size_t>(9 * nv));
   const double* values = tangent_.stiffness().valuePtr();
-  for (std::size_t v = 0; v < nv; ++v) {
+  const int team = 3 * nv > kMinParallelDofs ? team_size(options_.threads) : 1;
+#pragma omp parallel for num_threads(team) schedule(static)
+  for (std::int64_t v = 0; v < nv; ++v) {
     Eigen::Matrix3d block;
     for (int a = 0; a < 3; ++a) {
       for (int b = 0; b < 3; ++b) block(a, b) = values[vertex_block_slot_[9 * v + 3 * a + b]];

@@ -135,6 +135,17 @@ class TangentAssembler {
   bool has_volumetric_operator() const { return !vertex_coefficient_.empty(); }
   // out += G^T C G x at the last assembled state (no-op without the operator).
   void add_volumetric_product(const double* x, double* out) const;
+  // The two passes of add_volumetric_product over a vertex range [begin, end),
+  // for a caller that runs its own team (one parallel region per linear
+  // solve): z[a] = C_a g_a . x for a in the range (reads x on a's patch), then
+  // out_b += sum_a z_a g_a[b] for b in the range (reads z on b's patch, so
+  // every z the scatter reads must have been written first).
+  void volumetric_gather(const double* x, std::int64_t begin, std::int64_t end, double* z) const;
+  void add_volumetric_scatter(const double* z, std::int64_t begin, std::int64_t end, double* out) const;
+  // Entries of row a of G (the patch of a: a and its neighbours); 0 without the operator.
+  std::int64_t volumetric_row_length(std::size_t a) const {
+    return has_volumetric_operator() ? patch_offsets_[a + 1] - patch_offsets_[a] : 0;
+  }
   // blocks[9 v + 3 i + j] += (G^T C G)_(3v+i),(3v+j): its diagonal 3x3 blocks.
   void add_volumetric_diagonal_blocks(double* blocks) const;
   // out = K x with both parts (tests and small problems).
@@ -145,8 +156,8 @@ class TangentAssembler {
  private:
   template <bool kMooneyRivlin>
   ElasticEvaluation assemble_impl(const double* positions_m, double* forces_n);
-  // kNodalAverage: the rows g_a of G and C at positions_m.
-  void update_volumetric_operator(const double* positions_m);
+  // kNodalAverage: the rows g_a of G and C at positions_m, on `team` threads.
+  void update_volumetric_operator(const double* positions_m, int team);
 
   const ElasticBody* body_;
   Eigen::SparseMatrix<double> stiffness_;
@@ -164,6 +175,10 @@ class TangentAssembler {
   std::vector<std::int32_t> patches_, patch_local_;
   std::vector<std::int64_t> mirror_entry_;
   std::vector<double> g_rows_, vertex_coefficient_;
+  // G^T by rows, in the layout of g_rows_: entry k of row b (a = patches_[k])
+  // holds g_a[b], copied from g_rows_[3 mirror_entry_[k]] once per assembly so
+  // that the scatter of every product streams it instead of gathering.
+  std::vector<double> g_columns_;
   mutable std::vector<double> vertex_scratch_;
   std::vector<double> tet_pressure_;  // kNodalAverage scratch: mean nodal pressure per tet
   mesh::TetColouring colouring_;      // race-free parallel scatter, groups of consecutive tets

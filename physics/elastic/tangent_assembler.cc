@@ -114,6 +114,7 @@ TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
       }
     }
     g_rows_.assign(3 * patches.size(), 0.0);
+    g_columns_.assign(3 * patches.size(), 0.0);
     vertex_coefficient_.assign(num_vertices, 0.0);
     vertex_scratch_.resize(num_vertices);
   }
@@ -127,7 +128,7 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
   const ElasticBody& body = *body_;
   const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
   double* values = stiffness_.valuePtr();
-  std::fill_n(values, stiffness_.nonZeros(), 0.0);
+  const std::int64_t num_values = stiffness_.nonZeros();
   const std::int32_t* tets = body.tets.data();
   const std::int64_t* slots = slot_.data();
   const int team = team_size(threads_, num_tets, kMinTangentTetsPerThread);
@@ -170,6 +171,7 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
   double energy = volumetric_energy;
   std::int64_t first_inverted = kNoTet;
   if (team == 1) {
+    std::fill_n(values, num_values, 0.0);
     for (std::int64_t t = 0; t < num_tets; ++t) add_tet(t, energy, first_inverted);
   } else {
     // Groups of one colour share no vertex: they scatter in parallel without races.
@@ -183,106 +185,144 @@ ElasticEvaluation TangentAssembler::assemble_impl(const double* y, double* force
     group_energy_.assign(colouring_.order.size(), 0.0);
     double* group_energy = group_energy_.data();
 #pragma omp parallel num_threads(team) reduction(min : first_inverted)
-    for (std::int64_t c = 0; c < num_colours; ++c) {
+    {
+#pragma omp for schedule(static)
+      for (std::int64_t s = 0; s < num_values; ++s) values[s] = 0.0;
+      for (std::int64_t c = 0; c < num_colours; ++c) {
 #pragma omp for schedule(dynamic, 1)
-      for (std::int64_t k = colour_offsets[c]; k < colour_offsets[c + 1]; ++k) {
-        const std::int64_t group = order[k];
-        const std::int64_t end = std::min(num_tets, (group + 1) * group_size);
-        for (std::int64_t t = group * group_size; t < end; ++t)
-          add_tet(t, group_energy[group], first_inverted);
+        for (std::int64_t k = colour_offsets[c]; k < colour_offsets[c + 1]; ++k) {
+          const std::int64_t group = order[k];
+          const std::int64_t end = std::min(num_tets, (group + 1) * group_size);
+          for (std::int64_t t = group * group_size; t < end; ++t)
+            add_tet(t, group_energy[group], first_inverted);
+        }
       }
     }
     for (const double e : group_energy_) energy += e;
   }
-  if (nodal && first_inverted == kNoTet) update_volumetric_operator(y);
+  if (nodal && first_inverted == kNoTet) update_volumetric_operator(y, team);
   ElasticEvaluation result;
   result.energy_j = energy;
   result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
   return result;
 }
 
-void TangentAssembler::update_volumetric_operator(const double* y) {
+void TangentAssembler::update_volumetric_operator(const double* y, int team) {
   const ElasticBody& body = *body_;
   const std::int32_t* tets = body.tets.data();
-  std::fill(g_rows_.begin(), g_rows_.end(), 0.0);
-  for (std::size_t a = 0; a < body.num_vertices; ++a) {
-    // g_a = sum_{t at a} (1/4) dv_t/dy; with D the deformed edge matrix
-    // (columns y_k - y_4), dv_t/dy_i^k = cof(D)_ik / 6 (k = 1..3) and
-    // dv_t/dy^4 = -sum_k dv_t/dy^k.
-    double* row = g_rows_.data() + 3 * patch_offsets_[a];
-    for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k) {
-      const std::int32_t* v = tets + 4 * static_cast<std::int64_t>(body.vertex_tets[k]);
-      const double* y3 = y + 3 * static_cast<std::int64_t>(v[3]);
-      double d[9];
-      for (int c = 0; c < 3; ++c) {
-        const double* yc = y + 3 * static_cast<std::int64_t>(v[c]);
-        for (int i = 0; i < 3; ++i) d[3 * i + c] = yc[i] - y3[i];
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body.num_vertices);
+  const std::int64_t num_entries = static_cast<std::int64_t>(patches_.size());
+  // Row a is written by the thread of a alone; G^T is copied once every row is done.
+#pragma omp parallel num_threads(team)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t a = 0; a < num_vertices; ++a) {
+      double* row = g_rows_.data() + 3 * patch_offsets_[a];
+      std::fill(row, g_rows_.data() + 3 * patch_offsets_[a + 1], 0.0);
+      // g_a = sum_{t at a} (1/4) dv_t/dy; with D the deformed edge matrix
+      // (columns y_k - y_4), dv_t/dy_i^k = cof(D)_ik / 6 (k = 1..3) and
+      // dv_t/dy^4 = -sum_k dv_t/dy^k.
+      for (std::int64_t k = body.vertex_tet_offsets[a]; k < body.vertex_tet_offsets[a + 1]; ++k) {
+        const std::int32_t* v = tets + 4 * static_cast<std::int64_t>(body.vertex_tets[k]);
+        const double* y3 = y + 3 * static_cast<std::int64_t>(v[3]);
+        double d[9];
+        for (int c = 0; c < 3; ++c) {
+          const double* yc = y + 3 * static_cast<std::int64_t>(v[c]);
+          for (int i = 0; i < 3; ++i) d[3 * i + c] = yc[i] - y3[i];
+        }
+        const double cof[9] = {
+            d[4] * d[8] - d[5] * d[7], d[5] * d[6] - d[3] * d[8], d[3] * d[7] - d[4] * d[6],
+            d[2] * d[7] - d[1] * d[8], d[0] * d[8] - d[2] * d[6], d[1] * d[6] - d[0] * d[7],
+            d[1] * d[5] - d[2] * d[4], d[2] * d[3] - d[0] * d[5], d[0] * d[4] - d[1] * d[3]};
+        const std::int32_t* local = patch_local_.data() + 4 * k;
+        constexpr double kScale = 1.0 / 24.0;  // 1/4 (vertex share) x 1/6 (tet volume)
+        for (int i = 0; i < 3; ++i) {
+          const double h0 = kScale * cof[3 * i], h1 = kScale * cof[3 * i + 1], h2 = kScale * cof[3 * i + 2];
+          row[3 * local[0] + i] += h0;
+          row[3 * local[1] + i] += h1;
+          row[3 * local[2] + i] += h2;
+          row[3 * local[3] + i] -= h0 + h1 + h2;
+        }
       }
-      const double cof[9] = {d[4] * d[8] - d[5] * d[7], d[5] * d[6] - d[3] * d[8], d[3] * d[7] - d[4] * d[6],
-                             d[2] * d[7] - d[1] * d[8], d[0] * d[8] - d[2] * d[6], d[1] * d[6] - d[0] * d[7],
-                             d[1] * d[5] - d[2] * d[4], d[2] * d[3] - d[0] * d[5], d[0] * d[4] - d[1] * d[3]};
-      const std::int32_t* local = patch_local_.data() + 4 * k;
-      constexpr double kScale = 1.0 / 24.0;  // 1/4 (vertex share) x 1/6 (tet volume)
-      for (int i = 0; i < 3; ++i) {
-        const double h0 = kScale * cof[3 * i], h1 = kScale * cof[3 * i + 1], h2 = kScale * cof[3 * i + 2];
-        row[3 * local[0] + i] += h0;
-        row[3 * local[1] + i] += h1;
-        row[3 * local[2] + i] += h2;
-        row[3 * local[3] + i] -= h0 + h1 + h2;
-      }
+      // C_a = (kappa V)_a / V_a^2: d^2/dv_a^2 of (kappa V)_a / 2 (v_a / V_a - 1)^2
+      const double volume = body.vertex_volume_m3[a];
+      vertex_coefficient_[a] = volume > 0.0 ? body.vertex_bulk_volume_j[a] / (volume * volume) : 0.0;
     }
-    // C_a = (kappa V)_a / V_a^2: d^2/dv_a^2 of (kappa V)_a / 2 (v_a / V_a - 1)^2
-    const double volume = body.vertex_volume_m3[a];
-    vertex_coefficient_[a] = volume > 0.0 ? body.vertex_bulk_volume_j[a] / (volume * volume) : 0.0;
+#pragma omp for schedule(static)
+    for (std::int64_t k = 0; k < num_entries; ++k) {
+      const double* gab = g_rows_.data() + 3 * mirror_entry_[k];
+      for (int i = 0; i < 3; ++i) g_columns_[3 * k + i] = gab[i];
+    }
+  }
+}
+
+void TangentAssembler::volumetric_gather(const double* x, std::int64_t begin, std::int64_t end,
+                                         double* z) const {
+  const std::int64_t* offsets = patch_offsets_.data();
+  const std::int32_t* patches = patches_.data();
+  const double* g = g_rows_.data();
+  for (std::int64_t a = begin; a < end; ++a) {
+    double sum = 0.0;
+    for (std::int64_t k = offsets[a]; k < offsets[a + 1]; ++k) {
+      const double* xw = x + 3 * static_cast<std::int64_t>(patches[k]);
+      sum += g[3 * k] * xw[0] + g[3 * k + 1] * xw[1] + g[3 * k + 2] * xw[2];
+    }
+    z[a] = vertex_coefficient_[a] * sum;
+  }
+}
+
+void TangentAssembler::add_volumetric_scatter(const double* z, std::int64_t begin, std::int64_t end,
+                                              double* out) const {
+  const std::int64_t* offsets = patch_offsets_.data();
+  const std::int32_t* patches = patches_.data();
+  const double* gt = g_columns_.data();
+  for (std::int64_t b = begin; b < end; ++b) {
+    double o0 = 0.0, o1 = 0.0, o2 = 0.0;
+    for (std::int64_t k = offsets[b]; k < offsets[b + 1]; ++k) {
+      const double za = z[patches[k]];
+      o0 += za * gt[3 * k];  // g_a[b], a = patches[k]
+      o1 += za * gt[3 * k + 1];
+      o2 += za * gt[3 * k + 2];
+    }
+    out[3 * b] += o0;
+    out[3 * b + 1] += o1;
+    out[3 * b + 2] += o2;
   }
 }
 
 void TangentAssembler::add_volumetric_product(const double* x, double* out) const {
   if (!has_volumetric_operator()) return;
   const std::int64_t num_vertices = static_cast<std::int64_t>(body_->num_vertices);
-  const std::int64_t* offsets = patch_offsets_.data();
-  const std::int32_t* patches = patches_.data();
-  const double* g = g_rows_.data();
   double* z = vertex_scratch_.data();
-  // G^T (C (G x)): two row-wise gathers; the rows of G^T are the entries
-  // g_a[b] read through mirror_entry_ (any thread count, same numbers).
+  // G^T (C (G x)): two row-wise passes, the second over the stored rows of
+  // G^T (any thread count, same numbers).
   const int team = team_size(threads_, 5 * num_vertices, kMinForceTetsPerThread);
+  if (team == 1) {
+    volumetric_gather(x, 0, num_vertices, z);
+    add_volumetric_scatter(z, 0, num_vertices, out);
+    return;
+  }
 #pragma omp parallel num_threads(team)
   {
-#pragma omp for schedule(static)
-    for (std::int64_t a = 0; a < num_vertices; ++a) {
-      double sum = 0.0;
-      for (std::int64_t k = offsets[a]; k < offsets[a + 1]; ++k) {
-        const double* xw = x + 3 * static_cast<std::int64_t>(patches[k]);
-        sum += g[3 * k] * xw[0] + g[3 * k + 1] * xw[1] + g[3 * k + 2] * xw[2];
-      }
-      z[a] = vertex_coefficient_[a] * sum;
-    }
-#pragma omp for schedule(static)
-    for (std::int64_t b = 0; b < num_vertices; ++b) {
-      double o0 = 0.0, o1 = 0.0, o2 = 0.0;
-      for (std::int64_t k = offsets[b]; k < offsets[b + 1]; ++k) {
-        const double za = z[patches[k]];
-        const double* gab = g + 3 * mirror_entry_[k];  // g_a[b], a = patches[k]
-        o0 += za * gab[0];
-        o1 += za * gab[1];
-        o2 += za * gab[2];
-      }
-      out[3 * b] += o0;
-      out[3 * b + 1] += o1;
-      out[3 * b + 2] += o2;
-    }
+    const std::int64_t rank = omp_get_thread_num(), size = omp_get_num_threads();
+    const std::int64_t begin = num_vertices * rank / size, end = num_vertices * (rank + 1) / size;
+    volumetric_gather(x, begin, end, z);
+#pragma omp barrier
+    add_volumetric_scatter(z, begin, end, out);
   }
 }
 
 void TangentAssembler::add_volumetric_diagonal_blocks(double* blocks) const {
   if (!has_volumetric_operator()) return;
   // block_b = sum_{a in patch of b} C_a g_a[b] g_a[b]^T
-  for (std::size_t b = 0; b < body_->num_vertices; ++b) {
+  const std::int64_t num_vertices = static_cast<std::int64_t>(body_->num_vertices);
+  const int team = team_size(threads_, 5 * num_vertices, kMinForceTetsPerThread);
+#pragma omp parallel for num_threads(team) schedule(static)
+  for (std::int64_t b = 0; b < num_vertices; ++b) {
     double* block = blocks + 9 * b;
     for (std::int64_t k = patch_offsets_[b]; k < patch_offsets_[b + 1]; ++k) {
       const double c = vertex_coefficient_[patches_[k]];
-      const double* gab = g_rows_.data() + 3 * mirror_entry_[k];
+      const double* gab = g_columns_.data() + 3 * k;  // g_a[b], a = patches_[k]
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) block[3 * i + j] += c * gab[i] * gab[j];
       }

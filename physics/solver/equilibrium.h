@@ -155,7 +155,11 @@ class EquilibriumSolver {
                             const Eigen::VectorXd& dx) const;
   double held_component(const Eigen::VectorXd& v) const;
   void assemble_tangent(const contact::Obstacles& obstacles, const double* y);
-  void matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, double shift) const;
+  // out = (K + shift diag K) x on the rows of vertices [begin, end), without
+  // the applied volumetric part (reads x on their neighbours).
+  void multiply_rows(const double* x, double* out, double shift, std::int64_t begin, std::int64_t end) const;
+  // First vertex of thread rank's range of the linear solve (equal work).
+  std::int64_t split_vertex(int rank, int size) const;
   void build_preconditioner(double shift);
   // Projected PCG for (K + shift diag K) dx = rhs; returns CG iterations.
   int solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance, double absolute_tolerance,
@@ -188,6 +192,10 @@ class EquilibriumSolver {
   double damping_growth_ = 2.0;  // its growth factor after a failed step
   // CG work vectors
   Eigen::VectorXd r_, z_, p_, q_;
+  std::vector<double> volumetric_scratch_;  // C G p, one per vertex
+  std::vector<double> reduction_slots_;     // per thread partial sums, two rounds
+  std::vector<std::int64_t> work_prefix_;   // per vertex, prefix sum of its product work
+  std::vector<double> zero_mode_;           // stands for the absent held modes (at most 6)
 };
 
 }  // namespace cellflow::solver

@@ -17,7 +17,12 @@ namespace cellflow::solver {
 
 namespace {
 
+// Below this many unknowns (~2000 vertices) one linear solve's team costs
+// more in barriers than the second thread gives.
 constexpr std::int64_t kMinParallelDofs = 6000;
+// Reduced values per thread and round: r.r, r.z and the held modes'
+// components of z (at most 6), or p.q and those of q.
+constexpr int kReductionSlots = 16;
 
 int team_size(int threads) {
   return threads > 0 ? threads : omp_get_max_threads();
@@ -25,7 +30,8 @@ int team_size(int threads) {
 
 }  // namespace
 
-void EquilibriumSolver::matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, double shift) const {
+void EquilibriumSolver::multiply_rows(const double* x, double* out, double shift, std::int64_t begin,
+                                      std::int64_t end) const {
   // K is symmetric and stored with both triangles, so column i is row i:
   // out_i = K(:, i) . x. With the 3x3 block layout (columns 3v, 3v+1, 3v+2
   // hold the same neighbour rows, three consecutive rows per neighbour) one
@@ -34,107 +40,247 @@ void EquilibriumSolver::matvec(const Eigen::VectorXd& x, Eigen::VectorXd& out, d
   const auto* outer = k.outerIndexPtr();
   const auto* inner = k.innerIndexPtr();
   const double* values = k.valuePtr();
-  const std::int64_t n = k.cols();
-  const double* xs = x.data();
-  double* os = out.data();
   const double* diag = diagonal_.data();
   const bool blocked = !block_neighbour_offsets_.empty();
-  auto vertices = [&](std::int64_t begin, std::int64_t end) {
-    for (std::int64_t v = begin; v < end; ++v) {
-      if (!blocked) {
-        for (std::int64_t i = 3 * v; i < 3 * v + 3; ++i) {
-          double sum = shift * diag[i] * xs[i];
-          for (auto s = outer[i]; s < outer[i + 1]; ++s) sum += values[s] * xs[inner[s]];
-          os[i] = sum;
-        }
-        continue;
+  for (std::int64_t v = begin; v < end; ++v) {
+    if (!blocked) {
+      for (std::int64_t i = 3 * v; i < 3 * v + 3; ++i) {
+        double sum = shift * diag[i] * x[i];
+        for (auto s = outer[i]; s < outer[i + 1]; ++s) sum += values[s] * x[inner[s]];
+        out[i] = sum;
       }
-      const double* c0 = values + outer[3 * v];
-      const double* c1 = values + outer[3 * v + 1];
-      const double* c2 = values + outer[3 * v + 2];
-      double s0 = 0.0, s1 = 0.0, s2 = 0.0;
-      const std::int64_t first = block_neighbour_offsets_[v], count = block_neighbour_offsets_[v + 1] - first;
-      const std::int32_t* neighbours = block_neighbours_.data() + first;
-      for (std::int64_t b = 0; b < count; ++b) {
-        const double* xw = xs + 3 * static_cast<std::int64_t>(neighbours[b]);
-        const double x0 = xw[0], x1 = xw[1], x2 = xw[2];
-        s0 += c0[3 * b] * x0 + c0[3 * b + 1] * x1 + c0[3 * b + 2] * x2;
-        s1 += c1[3 * b] * x0 + c1[3 * b + 1] * x1 + c1[3 * b + 2] * x2;
-        s2 += c2[3 * b] * x0 + c2[3 * b + 1] * x1 + c2[3 * b + 2] * x2;
-      }
-      os[3 * v] = s0 + shift * diag[3 * v] * xs[3 * v];
-      os[3 * v + 1] = s1 + shift * diag[3 * v + 1] * xs[3 * v + 1];
-      os[3 * v + 2] = s2 + shift * diag[3 * v + 2] * xs[3 * v + 2];
+      continue;
     }
-  };
-  const std::int64_t nv = n / 3;
-  // Below ~2000 vertices a fork/join costs more than the product; outside a
-  // parallel region no OpenMP thread is woken at all.
-  const int team = n > kMinParallelDofs ? team_size(options_.threads) : 1;
-  if (team == 1) {
-    vertices(0, nv);
-  } else {
-#pragma omp parallel num_threads(team)
-    {
-      const std::int64_t rank = omp_get_thread_num(), size = omp_get_num_threads();
-      vertices(nv * rank / size, nv * (rank + 1) / size);
+    const double* c0 = values + outer[3 * v];
+    const double* c1 = values + outer[3 * v + 1];
+    const double* c2 = values + outer[3 * v + 2];
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+    const std::int64_t first = block_neighbour_offsets_[v], count = block_neighbour_offsets_[v + 1] - first;
+    const std::int32_t* neighbours = block_neighbours_.data() + first;
+    for (std::int64_t b = 0; b < count; ++b) {
+      const double* xw = x + 3 * static_cast<std::int64_t>(neighbours[b]);
+      const double x0 = xw[0], x1 = xw[1], x2 = xw[2];
+      s0 += c0[3 * b] * x0 + c0[3 * b + 1] * x1 + c0[3 * b + 2] * x2;
+      s1 += c1[3 * b] * x0 + c1[3 * b + 1] * x1 + c1[3 * b + 2] * x2;
+      s2 += c2[3 * b] * x0 + c2[3 * b + 1] * x1 + c2[3 * b + 2] * x2;
     }
+    out[3 * v] = s0 + shift * diag[3 * v] * x[3 * v];
+    out[3 * v + 1] = s1 + shift * diag[3 * v + 1] * x[3 * v + 1];
+    out[3 * v + 2] = s2 + shift * diag[3 * v + 2] * x[3 * v + 2];
   }
-  // the applied part of K (nodal-averaged volumetric term); its diagonal is
-  // in diag, so the shift above already covers it
-  tangent_.add_volumetric_product(xs, os);
+}
+
+std::int64_t EquilibriumSolver::split_vertex(int rank, int size) const {
+  // Vertex ranges of equal work: the prefix sums of the 3x3 blocks of K and
+  // the entries of G per vertex (the two passes of every product).
+  if (rank <= 0) return 0;
+  const std::int64_t nv = static_cast<std::int64_t>(body_->num_vertices);
+  if (rank >= size) return nv;
+  const double goal = static_cast<double>(work_prefix_.back()) * rank / size;
+  return std::lower_bound(work_prefix_.begin(), work_prefix_.end(), goal) - work_prefix_.begin();
 }
 
 int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance,
                                     double absolute_tolerance, double shift, Eigen::VectorXd& dx,
                                     bool& negative_curvature) {
-  Preconditioning& pc = *preconditioning_;
-  const std::size_t nv = body_->num_vertices;
-  auto apply_preconditioner = [&](const Eigen::VectorXd& in, Eigen::VectorXd& out) {
-    if (options_.preconditioner == Preconditioner::kIncompleteCholesky) {
-      out = pc.incomplete_cholesky.solve(in);
-    } else {
-      for (std::size_t v = 0; v < nv; ++v) {
-        const double* b = pc.block_inverse.data() + 9 * v;
-        const double* r = in.data() + 3 * v;
-        double* o = out.data() + 3 * v;
-        for (int a = 0; a < 3; ++a) o[a] = b[3 * a] * r[0] + b[3 * a + 1] * r[1] + b[3 * a + 2] * r[2];
-      }
+  // Projected PCG for (K + shift diag K) dx = rhs. The whole solve is one
+  // parallel region: each thread owns a vertex range of every vector and does
+  // the products, the preconditioner, the projections and the updates there;
+  // an iteration meets four barriers (p complete before the product, the
+  // volumetric gather before its scatter, and two reductions), where a region
+  // per product woke the team twice and left the vector work on one thread.
+  // The projections of q and z onto the null space of the held modes share
+  // the reductions and the passes of the updates. The reductions add the
+  // threads' partial sums in rank order: the result depends on the team
+  // size, not on the timing.
+  const bool incomplete_cholesky = options_.preconditioner == Preconditioner::kIncompleteCholesky;
+  const std::int64_t nv = static_cast<std::int64_t>(body_->num_vertices);
+  const std::int64_t n = 3 * nv;
+  // The incomplete Cholesky triangular solves are sequential: one thread.
+  const int team = n > kMinParallelDofs && !incomplete_cholesky ? team_size(options_.threads) : 1;
+  negative_curvature = false;
+  dx.setZero(n);
+  r_ = rhs;
+  z_.resize(n);
+  p_.resize(n);
+  q_.resize(n);
+  const bool volumetric = tangent_.has_volumetric_operator();
+  volumetric_scratch_.resize(static_cast<std::size_t>(volumetric ? nv : 0));
+  reduction_slots_.assign(static_cast<std::size_t>(2 * team * kReductionSlots), 0.0);
+  if (work_prefix_.size() != static_cast<std::size_t>(nv)) {
+    work_prefix_.resize(static_cast<std::size_t>(nv));
+    std::int64_t sum = 0;
+    for (std::int64_t v = 0; v < nv; ++v) {
+      const std::int64_t blocks = block_neighbour_offsets_.empty()
+                                      ? (tangent_.stiffness().outerIndexPtr()[3 * v + 1] -
+                                         tangent_.stiffness().outerIndexPtr()[3 * v]) /
+                                            3
+                                      : block_neighbour_offsets_[v + 1] - block_neighbour_offsets_[v];
+      sum += 1 + blocks + tangent_.volumetric_row_length(static_cast<std::size_t>(v));
+      work_prefix_[v] = sum;
     }
-    project(out);
+  }
+  const int num_modes = static_cast<int>(rigid_modes_.size());
+  const double* modes[6] = {};
+  zero_mode_.assign(static_cast<std::size_t>(n), 0.0);
+  for (int i = 0; i < 6; ++i) modes[i] = i < num_modes ? rigid_modes_[i].data() : zero_mode_.data();
+  const Preconditioning& pc = *preconditioning_;
+  int iterations = 0;
+  bool curvature_failed = false;
+
+  auto run = [&](int rank, int size) {
+    const std::int64_t vb = split_vertex(rank, size), ve = split_vertex(rank + 1, size);
+    const std::int64_t b = 3 * vb, e = 3 * ve;  // this thread's unknowns
+    double* r = r_.data();
+    double* z = z_.data();
+    double* p = p_.data();
+    double* q = q_.data();
+    double* x = dx.data();
+    double* zv = volumetric_scratch_.data();
+    int round = 0;
+    // Adds every thread's values[0 .. count) in rank order (same total on
+    // every thread); alternating slot sets make one barrier enough.
+    auto reduce = [&](double* values, int count) {
+      double* slots =
+          reduction_slots_.data() + static_cast<std::size_t>((round & 1) * size * kReductionSlots);
+      std::copy(values, values + count, slots + rank * kReductionSlots);
+      ++round;
+#pragma omp barrier
+      for (int c = 0; c < count; ++c) {
+        double total = 0.0;
+        for (int t = 0; t < size; ++t) total += slots[t * kReductionSlots + c];
+        values[c] = total;
+      }
+    };
+    // c[i] = m_i . v on the range, all modes in one pass; returns u . v too.
+    // Six accumulators whatever the number of modes (absent modes read a
+    // zero vector), so that the loop vectorises.
+    auto mode_components = [&](const double* u, const double* v, double* c) {
+      double uv = 0.0, c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0;
+      const double *m0 = modes[0], *m1 = modes[1], *m2 = modes[2], *m3 = modes[3], *m4 = modes[4],
+                   *m5 = modes[5];
+#pragma omp simd reduction(+ : uv, c0, c1, c2, c3, c4, c5)
+      for (std::int64_t k = b; k < e; ++k) {
+        const double vk = v[k];
+        uv += u[k] * vk;
+        c0 += m0[k] * vk;
+        c1 += m1[k] * vk;
+        c2 += m2[k] * vk;
+        c3 += m3[k] * vk;
+        c4 += m4[k] * vk;
+        c5 += m5[k] * vk;
+      }
+      const double all[6] = {c0, c1, c2, c3, c4, c5};
+      std::copy(all, all + num_modes, c);
+      return uv;
+    };
+    // (Q c)_k over six modes, c holding num_modes components
+    struct Padded {
+      double c[6];
+    };
+    auto pad = [&](const double* c) {
+      Padded out = {};
+      std::copy(c, c + num_modes, out.c);
+      return out;
+    };
+    auto held_part = [&](const Padded& c, std::int64_t k) {
+      return c.c[0] * modes[0][k] + c.c[1] * modes[1][k] + c.c[2] * modes[2][k] + c.c[3] * modes[3][k] +
+             c.c[4] * modes[4][k] + c.c[5] * modes[5][k];
+    };
+    // z = M^-1 r on the range (block Jacobi; incomplete Cholesky runs on a
+    // team of one, over everything); then red = {r.r, r.z, Q^T z}.
+    auto precondition = [&](double* red) {
+      if (incomplete_cholesky) {
+        const Eigen::VectorXd solved = pc.incomplete_cholesky.solve(r_);
+        std::copy(solved.data(), solved.data() + n, z);
+      } else {
+        for (std::int64_t v = vb; v < ve; ++v) {
+          const double* m = pc.block_inverse.data() + 9 * v;
+          const double* rv = r + 3 * v;
+          double* o = z + 3 * v;
+          for (int a = 0; a < 3; ++a) o[a] = m[3 * a] * rv[0] + m[3 * a + 1] * rv[1] + m[3 * a + 2] * rv[2];
+        }
+      }
+      double rr = 0.0;
+#pragma omp simd reduction(+ : rr)
+      for (std::int64_t k = b; k < e; ++k) rr += r[k] * r[k];
+      red[0] = rr;
+      red[1] = mode_components(r, z, red + 2);
+      reduce(red, 2 + num_modes);
+    };
+    // v -= Q c on the range
+    auto remove_modes = [&](double* v, const double* components) {
+      const Padded c = pad(components);
+#pragma omp simd
+      for (std::int64_t k = b; k < e; ++k) v[k] -= held_part(c, k);
+    };
+    double red[kReductionSlots] = {};
+
+    // r = P rhs, target from its norm
+    mode_components(r, r, red);
+    reduce(red, num_modes);
+    remove_modes(r, red);
+    // z = P M^-1 r, p = z. Since r, p and every later r are in the null space
+    // of Q^T (to round-off), r.(P z) = r.z and p.(P q) = p.q.
+    precondition(red);
+    const double target = std::max(relative_tolerance * std::sqrt(red[0]), absolute_tolerance);
+    if (std::sqrt(red[0]) <= target) return;
+    remove_modes(z, red + 2);
+    double rz = red[1];
+    for (std::int64_t k = b; k < e; ++k) p[k] = z[k];
+    for (int it = 0; it < options_.max_cg_iterations; ++it) {
+#pragma omp barrier
+      // q = (K + shift diag K) p
+      multiply_rows(p, q, shift, vb, ve);
+      if (volumetric) {
+        tangent_.volumetric_gather(p, vb, ve, zv);
+#pragma omp barrier
+        tangent_.add_volumetric_scatter(zv, vb, ve, q);
+      }
+      // Q^T q and p.q
+      red[num_modes] = mode_components(p, q, red);
+      reduce(red, num_modes + 1);
+      const double curvature = red[num_modes];
+      if (!(curvature > 0.0)) {
+        // Steihaug: stop at the last iterate; with none yet, the preconditioned
+        // residual is a descent direction for the line search to scale.
+        if (rank == 0) {
+          curvature_failed = true;
+          iterations = it + 1;
+        }
+        if (it == 0) std::copy(z + b, z + e, x + b);
+        return;
+      }
+      const double alpha = rz / curvature;
+      const Padded qc = pad(red);
+#pragma omp simd
+      for (std::int64_t k = b; k < e; ++k) {
+        x[k] += alpha * p[k];
+        r[k] -= alpha * (q[k] - held_part(qc, k));  // r -= alpha P q
+      }
+      precondition(red);
+      if (std::sqrt(red[0]) <= target) {
+        if (rank == 0) iterations = it + 1;
+        return;
+      }
+      const double rz_next = red[1];
+      const double beta = rz_next / rz;
+      const Padded zc = pad(red + 2);
+#pragma omp simd
+      for (std::int64_t k = b; k < e; ++k) p[k] = (z[k] - held_part(zc, k)) + beta * p[k];  // P z + beta p
+      rz = rz_next;
+    }
+    if (rank == 0) iterations = options_.max_cg_iterations;
   };
 
-  negative_curvature = false;
-  dx.setZero(rhs.size());
-  r_ = rhs;
-  project(r_);
-  const double target = std::max(relative_tolerance * r_.norm(), absolute_tolerance);
-  if (r_.norm() <= target) return 0;
-  apply_preconditioner(r_, z_);
-  p_ = z_;
-  double rz = r_.dot(z_);
-  int it = 0;
-  for (; it < options_.max_cg_iterations; ++it) {
-    matvec(p_, q_, shift);
-    project(q_);
-    const double curvature = p_.dot(q_);
-    if (!(curvature > 0.0)) {
-      // Steihaug: stop at the last iterate; with none yet, the preconditioned
-      // residual is a descent direction for the line search to scale.
-      negative_curvature = true;
-      if (it == 0) dx = z_;
-      return it + 1;
-    }
-    const double alpha = rz / curvature;
-    dx += alpha * p_;
-    r_ -= alpha * q_;
-    if (r_.norm() <= target) return it + 1;
-    apply_preconditioner(r_, z_);
-    const double rz_next = r_.dot(z_);
-    p_ = z_ + (rz_next / rz) * p_;
-    rz = rz_next;
+  if (team == 1) {
+    run(0, 1);
+  } else {
+#pragma omp parallel num_threads(team)
+    run(omp_get_thread_num(), omp_get_num_threads());
   }
-  return it;
+  negative_curvature = curvature_failed;
+  return iterations;
 }
 
 void EquilibriumSolver::build_preconditioner(double shift) {
@@ -158,10 +304,12 @@ void EquilibriumSolver::build_preconditioner(double shift) {
     pc.factor_valid = pc.incomplete_cholesky.info() == Eigen::Success;
     return;
   }
-  const std::size_t nv = body_->num_vertices;
-  pc.block_inverse.resize(9 * nv);
+  const std::int64_t nv = static_cast<std::int64_t>(body_->num_vertices);
+  pc.block_inverse.resize(static_cast<std::size_t>(9 * nv));
   const double* values = tangent_.stiffness().valuePtr();
-  for (std::size_t v = 0; v < nv; ++v) {
+  const int team = 3 * nv > kMinParallelDofs ? team_size(options_.threads) : 1;
+#pragma omp parallel for num_threads(team) schedule(static)
+  for (std::int64_t v = 0; v < nv; ++v) {
     Eigen::Matrix3d block;
     for (int a = 0; a < 3; ++a) {
       for (int b = 0; b < 3; ++b) block(a, b) = values[vertex_block_slot_[9 * v + 3 * a + b]];

@@ -1,7 +1,8 @@
 // Static equilibrium solver on a small compressed sphere: the residual reaches
 // the tolerance and is small by an independent evaluation, the plate reactions
 // balance, Newton converges quadratically near the solution, an inverted
-// initial state and an unsplittable load step end in kNumericalFailure.
+// initial state and an unsplittable load step end in kNumericalFailure, and
+// two threads reach the equilibrium of one.
 #include "physics/solver/equilibrium.h"
 
 #include <gtest/gtest.h>
@@ -147,6 +148,34 @@ TEST(Equilibrium, NewtonConvergesQuadraticallyNearTheSolution) {
     }
   }
   EXPECT_GE(checked, 2);
+}
+
+// The linear solves of a mesh above ~2000 vertices run as one parallel
+// region (physics/solver/pcg.cc); two threads must reach the equilibrium one
+// thread reaches, to the solve's tolerance (the sums are split differently,
+// so the Newton paths differ by round-off).
+TEST(Equilibrium, TwoThreadsReachTheEquilibriumOfOne) {
+  const Problem p = make_problem(2500, 0.5);
+  ASSERT_GT(p.mesh.num_vertices(), 2000u);  // above the size of a one-thread solve
+  std::vector<std::vector<double>> states;
+  std::vector<double> reactions;
+  for (const int threads : {1, 2}) {
+    EquilibriumOptions o = options(1e-9);
+    o.threads = threads;
+    EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, o);
+    std::vector<double> y = p.mesh.positions_m;
+    const EquilibriumReport report = solver.solve(p.plates(0.05 * kRadius), y);
+    ASSERT_TRUE(report.converged) << threads << " threads: " << report.message;
+    EXPECT_GT(report.cg_iterations, 10);
+    states.push_back(y);
+    reactions.push_back(report.contact.upper_plate_reaction_n);
+  }
+  double largest = 0.0;
+  for (std::size_t i = 0; i < states[0].size(); ++i)
+    largest = std::max(largest, std::abs(states[0][i] - states[1][i]));
+  EXPECT_LT(largest, 1e-6 * kRadius);
+  EXPECT_GT(reactions[0], 0.0);
+  EXPECT_NEAR(reactions[1], reactions[0], 1e-6 * reactions[0]);
 }
 
 TEST(Equilibrium, InvertedInitialStateIsANumericalFailure) {

@@ -249,7 +249,10 @@ double cell_extent(const Setup& setup) {
 // passively (2-core machine, 2026-12-01, cellflow-run -j N): 3000 vertices,
 // 40 points to 0.5, 1 thread 3.44 s against 2 threads 4.49 s; 12000
 // vertices, 6 points to 0.3, 6.90 s against 5.87 s. Below the crossover the
-// team's wake-ups cost more than the second core gives.
+// team's wake-ups cost more than the second core gives. Since the linear
+// solve is one parallel region (solver/pcg.cc), 2 threads beat 1 on the
+// issue's 3000-vertex curve under load (26.7 s against 31.6 s, load 9) but
+// not on the 40 points to 0.5 (equal); unchanged until measured idle.
 constexpr std::size_t kMinVerticesForThreads = 6000;
 
 int solve_threads(int requested, std::size_t vertices) {

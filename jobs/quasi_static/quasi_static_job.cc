@@ -36,6 +36,8 @@ scenes::QuasiStaticOptions to_numerics(const v1::QuasiStaticNumerics& n) {
   }
   if (n.has_contact_gap_tolerance_m()) options.contact_gap_tolerance_m = n.contact_gap_tolerance_m();
   if (n.probe_contact() == v1::PROBE_CONTACT_SURFACE) options.probe_contact = scenes::ProbeContact::kSurface;
+  if (n.has_pole_spacing_m()) options.pole_spacing_m = n.pole_spacing_m();
+  if (n.has_pole_grading_growth()) options.pole_grading_growth = n.pole_grading_growth();
   return options;
 }
 

@@ -10,8 +10,9 @@
 namespace cellflow::cell {
 
 StatusOr<CellBody> build_cell_body(const CellParams& cell, elastic::VolumetricTerm volumetric,
-                                   std::string_view field_prefix, Centring centring) {
-  StatusOr<mesh::TetMesh> built = build_cell_mesh(cell, field_prefix);
+                                   std::string_view field_prefix, Centring centring,
+                                   const mesh::PoleGrading& pole_grading) {
+  StatusOr<mesh::TetMesh> built = build_cell_mesh(cell, field_prefix, pole_grading);
   if (!built.ok()) return built.status();
   CellBody out;
   out.mesh = std::move(built).value();

@@ -37,8 +37,10 @@ struct CellBody {
 // build_cell_mesh (errors carried through, field paths under field_prefix,
 // e.g. "shear_flow.cell."), centring, then elastic::make_elastic_body with
 // `volumetric` (errors prefixed with field_prefix less its trailing dot).
+// `pole_grading`: the generated sphere's grading towards its poles.
 StatusOr<CellBody> build_cell_body(const CellParams& cell, elastic::VolumetricTerm volumetric,
                                    std::string_view field_prefix = "cell.",
-                                   Centring centring = Centring::kBoundingBox);
+                                   Centring centring = Centring::kBoundingBox,
+                                   const mesh::PoleGrading& pole_grading = {});
 
 }  // namespace cellflow::cell

@@ -73,7 +73,8 @@ Status validate(const CellParams& cell, std::string_view field_prefix) {
   return check(cell).status(field_prefix);
 }
 
-StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix) {
+StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix,
+                                        const mesh::PoleGrading& pole_grading) {
   if (Status s = validate(cell, field_prefix); !s.ok()) return s;
   const std::string field = cell.mesh_bytes
                                 ? std::string(field_prefix) + "mesh_sha256" +
@@ -84,6 +85,7 @@ StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view
     options.radius_m = cell.radius_m;
     options.target_vertex_count = cell.target_vertex_count;
     if (cell.nucleus) options.nucleus_radius_m = cell.nucleus->radius_m;
+    options.pole_grading = pole_grading;
     StatusOr<mesh::TetMesh> made = mesh::make_sphere_mesh(options);
     if (!made.ok()) {
       return Status(made.status().code(),

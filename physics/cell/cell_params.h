@@ -25,7 +25,7 @@ struct CellParams {
   elastic::Material material;
   std::optional<NucleusParams> nucleus;
   int target_vertex_count = mesh::kDefaultSphereVertexCount;  // sphere mesh size, 200 ... 20000
-  std::string mesh_file;           // optional Gmsh .msh v4 ASCII; replaces the generated sphere
+  std::string mesh_file;  // optional Gmsh .msh v4 ASCII; replaces the generated sphere
   // Optional Gmsh .msh v4 ASCII bytes (an uploaded mesh); replaces the
   // generated sphere and mesh_file. Read with the bounded reader; mesh_name
   // stands for the file in messages (e.g. the mesh's hash).
@@ -47,7 +47,10 @@ Status validate(const CellParams& cell, std::string_view field_prefix);
 // (its volume-equivalent radius must match radius_m within a factor 1.25;
 // nucleus tetrahedra of a file take the cytoplasm material unless `nucleus`
 // is set). Errors of the mesher and the reader are carried through with the
-// field path `field_prefix` + "mesh_file" prepended.
-StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix = "cell.");
+// field path `field_prefix` + "mesh_file" prepended. `pole_grading` grades a
+// generated sphere towards its poles (mesh::PoleGrading; files and uploaded
+// meshes are taken as they are).
+StatusOr<mesh::TetMesh> build_cell_mesh(const CellParams& cell, std::string_view field_prefix = "cell.",
+                                        const mesh::PoleGrading& pole_grading = {});
 
 }  // namespace cellflow::cell

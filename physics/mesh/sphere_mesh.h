@@ -21,6 +21,19 @@ inline constexpr double kMaxSphereRadiusM = 1e-2;
 inline constexpr int kMinSphereVertexCount = 200;
 inline constexpr int kMaxSphereVertexCount = 20000;
 
+// Grading towards the poles (0, 0, +-R), where the contact scenes' plates and
+// probe touch the cell: the surface edge length is pole_spacing_m at the
+// poles and grows by `growth` times the arc distance from the nearer pole up
+// to the uniform mesh's spacing h (graded_sphere_surface.h); TetGen's quality
+// refinement grades the interior from it. target_vertex_count then sets the
+// bulk (h and the interior volume bound of the uniform mesh of that count),
+// and the grading adds vertices near the poles (about 2 pi / (0.87 growth^2)
+// ln(h / pole_spacing_m) on the surface of each pole).
+struct PoleGrading {
+  double pole_spacing_m = 0.0;  // 0: uniform geodesic mesh; else in [1e-3 R, h) (>= h: uniform)
+  double growth = 0.15;         // in [0.1, 1]
+};
+
 struct SphereMeshOptions {
   double radius_m = 0.0;  // R in [kMinSphereRadiusM, kMaxSphereRadiusM]
   int target_vertex_count =
@@ -28,7 +41,13 @@ struct SphereMeshOptions {
   double nucleus_radius_m = 0.0;       // > 0: concentric nucleus region (tets marked Region::kNucleus)
   double max_radius_edge_ratio = 1.5;  // TetGen quality bound (-q); 1.1 ... 10
   double min_dihedral_deg = 10.0;      // TetGen quality bound (-q/..); 0 ... 18
+  PoleGrading pole_grading;            // default: none
 };
+
+// Surface edge length h of the uniform sphere mesh make_sphere_mesh makes for
+// this radius and vertex count (the geodesic sphere's mean edge); 0 for
+// arguments out of make_sphere_mesh's range.
+double sphere_mesh_spacing_m(double radius_m, int target_vertex_count);
 
 // Deterministic: the same options give the same mesh.
 // Geodesic (subdivided icosahedron) surface with every boundary vertex exactly
@@ -42,6 +61,11 @@ struct SphereMeshOptions {
 // exceeds min_dihedral_deg without breaking the radius-edge bound.
 // Meshing runs on a sphere normalised by a power of two and is scaled back,
 // so the result does not depend on the unit beyond that exact scaling.
+// With pole_grading.pole_spacing_m in (0, h): the pole-graded ring surface
+// instead of the geodesic one (both poles are vertices too), the interior
+// volume bound of the uniform mesh, one TetGen run; a graded mesh of more
+// than kMaxSphereVertexCount vertices (half that on its surface, or made)
+// -> kInvalidArgument naming pole_grading.pole_spacing_m.
 // Invalid options (any double, NaN and infinities included, any int) ->
 // kInvalidArgument naming the field and its range, never a crash; the
 // nucleus must leave a shell of at least half a mesh spacing

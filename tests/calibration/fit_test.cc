@@ -222,6 +222,7 @@ TEST(FitCurves, WarmStartedProfilesMatchExactProfiles) {
 // Probe indentation (Rp = R, 600 vertices: the probe much wider than the
 // mesh edge), w fixed at 1: one simulation; E and the contact recovered from
 // a noiseless shifted curve; scene_force_n reproduces the scene at its load points.
+constexpr double kReproductionTolerance = 1e-10;
 TEST(FitCurves, ProbeIndentationWithFixedW) {
   const double probe_radius = kRadius;
   scenes::IndentationParams p;
@@ -232,6 +233,10 @@ TEST(FitCurves, ProbeIndentationWithFixedW) {
   p.max_indentation_m = 0.5 * 2 * kRadius;
   p.load_points = 10;
   p.numerics.threads = 1;
+  // Converged far below the 1e-9 asserted below: the library runs the scene
+  // at another E (not a power of two away), and on the default probe mesh
+  // (graded to the pole, issue 11) the default 1e-6 left 1.3e-9 between them.
+  p.numerics.residual_tolerance = kReproductionTolerance;
   const scenes::QuasiStaticResult run = scenes::run_indentation(p);
   ASSERT_TRUE(run.status.ok()) << run.status.to_string();
   MeasuredCurve curve = testing::measured_from(run, kRadius, 0.02 * kRadius, 0.0, 1u);
@@ -243,6 +248,7 @@ TEST(FitCurves, ProbeIndentationWithFixedW) {
   options.max_deformation = 0.45;
   options.numerics = testing::coarse_numerics(600, 10);
   options.numerics.max_deformation = 0.5;
+  options.numerics.residual_tolerance = kReproductionTolerance;
   options.joint = false;
   StatusOr<FitResult> fit = fit_curves({curve}, options, library);
   ASSERT_TRUE(fit.ok()) << fit.status().to_string();

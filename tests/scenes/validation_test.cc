@@ -3,6 +3,7 @@
 // the field path; nothing crashes and nothing is silently defaulted.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -129,6 +130,14 @@ INSTANTIATE_TEST_SUITE_P(
         BadCompression{"gap_tolerance_too_large",
                        [](auto& p) { p.numerics.contact_gap_tolerance_m = 0.1 * kRadius; },
                        "compression.numerics.contact_gap_tolerance_m"},
+        BadCompression{"pole_spacing_negative", [](auto& p) { p.numerics.pole_spacing_m = -1e-7; },
+                       "compression.numerics.pole_spacing_m"},
+        BadCompression{"pole_spacing_too_small", [](auto& p) { p.numerics.pole_spacing_m = 1e-4 * kRadius; },
+                       "compression.numerics.pole_spacing_m"},
+        BadCompression{"pole_spacing_nan", [](auto& p) { p.numerics.pole_spacing_m = std::nan(""); },
+                       "compression.numerics.pole_spacing_m"},
+        BadCompression{"pole_growth_small", [](auto& p) { p.numerics.pole_grading_growth = 0.05; },
+                       "compression.numerics.pole_grading_growth"},
         BadCompression{"threads_negative", [](auto& p) { p.numerics.threads = -1; },
                        "compression.numerics.threads"},
         BadCompression{"missing_mesh_file", [](auto& p) { p.cell.mesh_file = "/nonexistent/cell.msh"; },

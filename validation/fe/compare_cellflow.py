@@ -89,25 +89,36 @@ def main():
         with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
             json.dump(spec, f)
         start = time.time()
+        cpu_start = os.times()
         run = subprocess.run([runner, "-q", "-j", "1", f.name], capture_output=True, text=True, env=env)
         seconds = time.time() - start
+        cpu_end = os.times()
+        cpu = (cpu_end.children_user - cpu_start.children_user) + (cpu_end.children_system -
+                                                                    cpu_start.children_system)
         os.unlink(f.name)
         at = reference(name, ref_col)
         errors = []
+        points = []
         for r in csv.DictReader(run.stdout.splitlines()):
             x, force = float(r[row_col]), float(r["force_n"])
             ref = at(x)
             if ref and x >= first * (1 - 1e-9):
                 errors.append((x, force / ref - 1.0, float(r["max_penetration_m"])))
+                points.append((force, ref))
         if not errors:
             print(f"{name}: no points ({run.stderr.strip()})")
             continue
         worst = max(errors, key=lambda e: abs(e[1]))
+        # Raggedness: each step of the force against the reference's step
+        # over the same interval (1: the same step; > 1: a jump).
+        steps = [(f1 - f0) / (r1 - r0) for (f0, r0), (f1, r1) in zip(points, points[1:])]
+        monotone = all(s > 0 for s in steps)
         last = errors[-1][0]
         status = (f"reached {end * scale:g}{unit}" if last > end * (1 - 1e-3)
                   else f"stopped at {last * scale:.3f}{unit}: {run.stderr.strip()}")
         print(f"{name}: largest |error| {100 * abs(worst[1]):.2f} % at {worst[0] * scale:.3f}{unit}; "
-              f"{status}; {seconds:.1f} s; max penetration {max(e[2] for e in errors):.2e} m")
+              f"{status}; {'monotone' if monotone else 'NOT monotone'}, largest step / reference step "
+              f"{max(steps, default=0):.3f}; {seconds:.1f} s wall, {cpu:.1f} s CPU; max penetration {max(e[2] for e in errors):.2e} m")
         print("   " + "  ".join(f"{d * scale:.3g}: {100 * e:+.2f} %"
                                 for i, (d, e, _) in enumerate(errors)
                                 if i % 4 == 0 or i < 4 or i == len(errors) - 1))

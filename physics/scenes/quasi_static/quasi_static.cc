@@ -58,6 +58,12 @@ constexpr double kMinGapToleranceRadii = 1e-8, kMaxGapToleranceRadii = 1e-2;
 // deformation 0.9 reach 0.34-0.49 (nu 0.45-0.499); collapsing ones fall
 // below 0.1 (bench/stability). Below it the point is not trusted.
 constexpr double kMinVolumeRatio = 0.2;
+// Pole spacing of the graded sphere (mesh::PoleGrading's range).
+constexpr double kMinPoleSpacingRadii = 1e-3;
+// The default indentation grading refines the poles by at most this factor
+// below the uniform spacing (a curve of many load points would otherwise ask
+// for a pole spacing of its first, tiny contact).
+constexpr double kMaxDefaultPoleRefinement = 10.0;
 
 // The reaction of a plate or probe on a hyperelastic cell grows with the
 // travel. A converged point with less force than the one before (by more than
@@ -73,7 +79,14 @@ std::string int_range(int lo, int hi) {
 
 // "[lo, hi]" and "lie in [lo, hi]" for a real range.
 std::string interval(double lo, double hi) {
-  return "[" + number_text(lo) + ", " + number_text(hi) + "]";
+  // Appended, not "[" + ...: GCC 12 -O3 reports a false -Wrestrict on the
+  // inlined operator+(const char*, string&&).
+  std::string text = "[";
+  text += number_text(lo);
+  text += ", ";
+  text += number_text(hi);
+  text += "]";
+  return text;
 }
 std::string real_range(double lo, double hi) {
   return "lie in " + interval(lo, hi);
@@ -131,6 +144,16 @@ Violations check_numerics(const QuasiStaticOptions& n, const cell::CellParams& c
             "] radius_m = " + interval(kMinGapToleranceRadii * radius_m, kMaxGapToleranceRadii * radius_m) +
             " (or unset for the default)");
   }
+  if (n.pole_spacing_m && *n.pole_spacing_m != 0.0 &&
+      !(*n.pole_spacing_m >= kMinPoleSpacingRadii * radius_m && *n.pole_spacing_m <= radius_m)) {
+    v.add_value("pole_spacing_m", *n.pole_spacing_m,
+                "be 0 (uniform mesh) or lie in [" + number_text(kMinPoleSpacingRadii) +
+                    ", 1] radius_m = " + number_text(kMinPoleSpacingRadii * radius_m) + " ... " +
+                    number_text(radius_m) + " m (or unset for the default)");
+  }
+  if (!(n.pole_grading_growth >= 0.1 && n.pole_grading_growth <= 1.0)) {
+    v.add_value("pole_grading_growth", n.pole_grading_growth, "lie in [0.1, 1]");
+  }
   if (n.threads < 0 || n.threads > kMaxThreads) {
     v.add("threads", "= " + std::to_string(n.threads) + " must " + int_range(0, kMaxThreads));
   }
@@ -172,11 +195,12 @@ struct Setup {
 };
 
 StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& numerics, int load_points,
-                        std::string_view prefix) {
+                        std::string_view prefix, double pole_spacing_m) {
   Setup setup;
   // The cell mesh with its bounding box centred at the origin, and its body.
+  const mesh::PoleGrading grading{.pole_spacing_m = pole_spacing_m, .growth = numerics.pole_grading_growth};
   StatusOr<cell::CellBody> built = cell::build_cell_body(
-      cell, numerics.volumetric, std::string(prefix) + "cell.", cell::Centring::kBoundingBox);
+      cell, numerics.volumetric, std::string(prefix) + "cell.", cell::Centring::kBoundingBox, grading);
   if (!built.ok()) return built.status();
   if (Status s = check_load_point_vertices(load_points, built->mesh.num_vertices(), prefix); !s.ok())
     return s;
@@ -358,6 +382,26 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
 
 }  // namespace
 
+double default_pole_spacing_m(const IndentationParams& params) {
+  const double radius = params.cell.radius_m;
+  const double rp = params.probe_radius_m;
+  if (!params.cell.mesh_file.empty() || params.cell.mesh_bytes || !(radius > 0.0 && rp > 0.0) ||
+      params.load_points < 1)
+    return 0.0;
+  // Hertz contact radii a = sqrt(R d) of the first load point (paper SI
+  // section 2.5; Johnson, Contact Mechanics, eq. 4.22): probe on top
+  // (R12 = Rp R / (Rp + R)), plate below (R); the travel split as in
+  // hertz_probe_force_n.
+  const double travel = params.max_indentation_m / params.load_points;
+  const double r12 = rp * radius / (rp + radius);
+  const double d_top = travel / (1.0 + std::cbrt(r12 / radius));
+  const double contact_radius = std::min(std::sqrt(r12 * d_top), std::sqrt(radius * (travel - d_top)));
+  const double uniform = mesh::sphere_mesh_spacing_m(radius, params.cell.target_vertex_count);
+  const double wanted = contact_radius / kPoleSpacingsPerContactRadius;
+  if (!(wanted < uniform)) return 0.0;
+  return std::max({wanted, uniform / kMaxDefaultPoleRefinement, kMinPoleSpacingRadii * radius});
+}
+
 Violations violations(const CompressionParams& params) {
   Violations v;
   v.add_all(cell::check(params.cell), "cell.");
@@ -436,7 +480,8 @@ QuasiStaticResult run_indentation(const IndentationParams& params, const SceneCa
 QuasiStaticResult run_compression(const Checked<CompressionParams>& checked,
                                   const SceneCallbacks& callbacks) {
   const CompressionParams& params = checked.params();
-  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "compression.");
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "compression.",
+                                     params.numerics.pole_spacing_m.value_or(0.0));
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   // Plates start at the zero-force distance from the extreme vertices: first
@@ -475,7 +520,8 @@ QuasiStaticResult run_compression(const Checked<CompressionParams>& checked,
 QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
                                   const SceneCallbacks& callbacks) {
   const IndentationParams& params = checked.params();
-  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "indentation.");
+  StatusOr<Setup> prepared = prepare(params.cell, params.numerics, params.load_points, "indentation.",
+                                     params.numerics.pole_spacing_m.value_or(default_pole_spacing_m(params)));
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   const double range = start_distance(setup, params.numerics);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -124,6 +125,15 @@ inline ProbeComparison compare_with_reference(const IndentationParams& params) {
   }
   if (!have_last && c.status.ok()) c.status = Status(StatusCode::kInternal, "no point in the compared range");
   return c;
+}
+
+// One line per comparison in the test log: the figures the README quotes.
+inline void print_comparison(const char* name, const ProbeComparison& c) {
+  std::printf(
+      "%s: largest |error| %.2f %% at %.3g um, monotone %d, largest step / reference step %.3f, %zu "
+      "vertices\n",
+      name, 100.0 * c.largest_error, 1e6 * c.largest_error_at_m, c.monotone ? 1 : 0, c.largest_step_ratio,
+      c.vertices);
 }
 
 }  // namespace cellflow::scenes

@@ -5,24 +5,14 @@
 // monotone). Measured figures in validation/fe/README.md. Label long.
 #include <gtest/gtest.h>
 
-#include <cstdio>
-
 #include "tests/scenes/probe_validation.h"
 
 namespace cellflow::scenes {
 namespace {
 
-void print(const char* name, const ProbeComparison& c) {
-  std::printf(
-      "%s: largest |error| %.2f %% at %.3g um, monotone %d, largest step / reference step %.3f, %zu "
-      "vertices\n",
-      name, 100.0 * c.largest_error, 1e6 * c.largest_error_at_m, c.monotone ? 1 : 0, c.largest_step_ratio,
-      c.vertices);
-}
-
 TEST(ProbeValidationLong, SmallProbeDefault) {
   const ProbeComparison c = compare_with_reference(small_probe(3000, 40));
-  print("small probe, default", c);
+  print_comparison("small probe, default", c);
   ASSERT_TRUE(c.status.ok()) << c.status.to_string();
   EXPECT_TRUE(c.monotone);
   EXPECT_LT(c.largest_error, 0.05);
@@ -31,7 +21,7 @@ TEST(ProbeValidationLong, SmallProbeDefault) {
 
 TEST(ProbeValidationLong, ColloidalProbeDefault) {
   const ProbeComparison c = compare_with_reference(colloidal_probe(3000, 40));
-  print("colloidal probe, default", c);
+  print_comparison("colloidal probe, default", c);
   ASSERT_TRUE(c.status.ok()) << c.status.to_string();
   EXPECT_TRUE(c.monotone);
   EXPECT_LT(c.largest_error, 0.03);

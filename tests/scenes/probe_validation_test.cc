@@ -11,24 +11,14 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdio>
-
 namespace cellflow::scenes {
 namespace {
-
-void print(const char* name, const ProbeComparison& c) {
-  std::printf(
-      "%s: largest |error| %.2f %% at %.3g um, monotone %d, largest step / reference step %.3f, %zu "
-      "vertices\n",
-      name, 100.0 * c.largest_error, 1e6 * c.largest_error_at_m, c.monotone ? 1 : 0, c.largest_step_ratio,
-      c.vertices);
-}
 
 // Coarse: 1000 vertices, 10 load points, the default numerics (the pole
 // grading of the default indentation mesh included).
 TEST(ProbeValidation, SmallProbeCoarse) {
   const ProbeComparison c = compare_with_reference(small_probe(1000, 10));
-  print("small probe, 1000 vertices, 10 points", c);
+  print_comparison("small probe, 1000 vertices, 10 points", c);
   ASSERT_TRUE(c.status.ok()) << c.status.to_string();
   EXPECT_TRUE(c.monotone);
   EXPECT_LT(c.largest_error, kSmallProbeCoarseError);
@@ -37,7 +27,7 @@ TEST(ProbeValidation, SmallProbeCoarse) {
 
 TEST(ProbeValidation, ColloidalProbeCoarse) {
   const ProbeComparison c = compare_with_reference(colloidal_probe(1000, 10));
-  print("colloidal probe, 1000 vertices, 10 points", c);
+  print_comparison("colloidal probe, 1000 vertices, 10 points", c);
   ASSERT_TRUE(c.status.ok()) << c.status.to_string();
   EXPECT_TRUE(c.monotone);
   EXPECT_LT(c.largest_error, kColloidalProbeCoarseError);

@@ -128,9 +128,11 @@ TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
   EXPECT_FALSE(fs::exists(checkpoint));
 
   // Work and time. The resumed attempt stepped only from the checkpoint on
-  // (a step count, immune to the load of a shared machine); the whole, with
-  // the kill, the 1 s lease expiry and two worker starts, takes well below
-  // two runs (a restart from zero: 1.6 runs of stepping and the same fixed costs).
+  // (a step count, immune to the load of a shared machine), and it took less
+  // than a whole uninterrupted run: a restart from zero steps the whole run
+  // again. (The whole, total_s, is printed but not bounded: its fixed costs,
+  // the 1 s lease expiry and two worker starts, do not shrink with the run,
+  // and since the flow step got faster they are 0.7 of a run.)
   std::smatch resumed;
   ASSERT_TRUE(std::regex_search(log, resumed, std::regex(R"(resumed after step (\d+))")));
   const std::int64_t resumed_step = std::stoll(resumed[1]);
@@ -153,7 +155,7 @@ TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
       reference_s, delivered_before_kill, total_samples, killed_after_s, total_s, total_s / reference_s,
       static_cast<long long>(resumed_step), static_cast<long long>(reference.time_steps), second_attempt_s,
       second_attempt_s / reference_s);
-  EXPECT_LT(total_s, 2.0 * reference_s);
+  EXPECT_LT(second_attempt_s, reference_s);
 }
 
 // SIGTERM (Slurm's warning before a time limit or a preemption): the worker

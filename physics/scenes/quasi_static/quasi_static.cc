@@ -176,12 +176,15 @@ void check_load_points(int load_points, const cell::CellParams& cell, Violations
   }
 }
 
-Status check_load_point_vertices(int load_points, std::size_t vertices, std::string_view prefix) {
+// After meshing: the vertices a mesh file holds, or those a pole-graded
+// sphere adds to cell.target_vertex_count; `mesh_source` names which.
+Status check_load_point_vertices(int load_points, std::size_t vertices, std::string_view prefix,
+                                 const std::string& mesh_source) {
   if (static_cast<double>(load_points) * static_cast<double>(vertices) <= kMaxLoadPointVertices) return {};
   return invalid_argument(std::string(prefix) + "load_points = " + std::to_string(load_points) +
-                          " with the " + std::to_string(vertices) + " vertices of " + std::string(prefix) +
-                          "cell.mesh_file must keep load_points x vertices at most " +
-                          number_text(kMaxLoadPointVertices) + " (the run's cost)");
+                          " with the " + std::to_string(vertices) + " vertices of " + mesh_source +
+                          " must keep load_points x vertices at most " + number_text(kMaxLoadPointVertices) +
+                          " (the run's cost)");
 }
 
 // Everything a quasi-static run sets up before its first load step.
@@ -202,7 +205,14 @@ StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& 
   StatusOr<cell::CellBody> built = cell::build_cell_body(
       cell, numerics.volumetric, std::string(prefix) + "cell.", cell::Centring::kBoundingBox, grading);
   if (!built.ok()) return built.status();
-  if (Status s = check_load_point_vertices(load_points, built->mesh.num_vertices(), prefix); !s.ok())
+  const std::string p(prefix);
+  const std::string mesh_source =
+      !cell.mesh_file.empty() ? p + "cell.mesh_file"
+      : pole_spacing_m > 0.0
+          ? "the sphere mesh of " + p + "cell.target_vertex_count graded to " + p + "numerics.pole_spacing_m"
+          : "the sphere mesh of " + p + "cell.target_vertex_count";
+  if (Status s = check_load_point_vertices(load_points, built->mesh.num_vertices(), prefix, mesh_source);
+      !s.ok())
     return s;
   setup.mesh = std::move(built->mesh);
   setup.body = std::move(built->body);

@@ -41,18 +41,10 @@ namespace {
 // (a check of the band update; the displacement fallback covers the rest).
 constexpr int kFullMarkingEveryUpdates = 200;
 
-// A vertex faster than this (lattice units, Mach 0.35) means the explicit
-// coupling has gone unstable; the flow itself never exceeds u_wall.
-constexpr double kRunawaySpeedLattice = 0.2;
-
 // Surface vertices within this fraction of R of the equatorial plane z = 0
 // (reference configuration) carry the tank-treading estimate: their angle in
 // the x-y plane about the centroid is well defined.
 constexpr double kTankTreadBand = 0.7;
-
-// Vertex count from which the coupling kernels use OpenMP threads (3000
-// vertices: elastic forces 0.56 ms serial, 0.37 ms on two free cores).
-constexpr std::size_t kParallelVertices = 2000;
 
 void emit_positions(Run& run, double time_s, const std::vector<double>& x_lb) {
   if (run.keep_snapshots &&

@@ -19,16 +19,13 @@
 #include "physics/lb/fluid.h"
 #include "physics/marking/marking.h"
 #include "physics/mesh/tet_mesh.h"
+#include "physics/scenes/shear_flow/flow_limits.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/units/units.h"
 
 namespace cellflow::scenes::shear_flow_detail {
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Elastic energy above this multiple of mu V0 is a blow-up: the paper's
-// largest deformation (strain 1.8 at Ca = 2) stores about 3 mu V0.
-constexpr double kEnergyBlowUp = 100.0;
 
 // mu = mu1 + mu2 of the material.
 double shear_modulus(const elastic::Material& material);

@@ -34,6 +34,7 @@
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
 #include "physics/scenes/shear_flow/couette_fluid.h"
+#include "physics/scenes/shear_flow/flow_limits.h"
 #include "physics/scenes/suspension/cell_contact.h"
 #include "physics/scenes/suspension/placement.h"
 #include "physics/scenes/suspension/suspension_internal.h"
@@ -46,13 +47,6 @@ using namespace suspension_detail;
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// As the single-cell scene (shear_flow.cc): a vertex faster than this
-// (lattice units, Mach 0.35) means the explicit coupling went unstable, and
-// an elastic energy above kEnergyBlowUp mu V0 is a blow-up.
-constexpr double kRunawaySpeedLattice = 0.2;
-constexpr double kEnergyBlowUp = 100.0;
-// Vertex count of all cells together from which the coupling kernels use threads.
-constexpr std::size_t kParallelVertices = 2000;
 // Fewest samples after average_after_strain before target_standard_error may stop the run.
 constexpr int kMinAveragedSamples = 4 * kMinBlocks;
 

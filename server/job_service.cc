@@ -514,7 +514,15 @@ StatusOr<v1::SubmitJobResponse> JobService::submit_study(const v1::SubmitJobRequ
                         std::to_string(options_.memory_limit_bytes >> 20) + " MiB (--memory-limit-bytes)");
     }
     bounds.push_back((*prepared)->max_sample_index());
-    children.push_back({std::move(point.spec), memory});
+    // A fit point reads library curves like a submitted fit: what the server
+    // lacks is simulated by child jobs of that point, each curve once.
+    std::vector<Store::LibraryChild> library;
+    if (point.spec.has_fit()) {
+      auto needs = library_children(point.spec);
+      if (!needs.ok()) return Status(needs.status().code(), where + ": " + needs.status().message());
+      library = std::move(*needs);
+    }
+    children.push_back({std::move(point.spec), memory, std::move(library)});
   }
   auto submitted = store_.submit_study(spec, children, request.request_id(), now(), caller.user);
   if (!submitted.ok()) return submitted.status();

@@ -651,6 +651,53 @@ StatusOr<std::int64_t> insert_child_job(sqlite3* db, Stmt& insert, const v1::Job
   return child_id;
 }
 
+// The library side of a fit (inside the caller's write transaction): one
+// library_needs row per curve key the fit reads, and a child job
+// (parent_id = the fit, library_key = the key) per needed curve that the
+// library table lacks, no queued or running job is building already (of any
+// fit or owner: a curve is built once) and the fit will read; then the fit's
+// child_count and library_fit = 1. Returns the number of children queued.
+StatusOr<int> queue_library_children(sqlite3* db, std::int64_t fit_id,
+                                     const std::vector<Store::LibraryChild>& needs, const std::string& owner,
+                                     std::int64_t now_ms) {
+  // Under the write lock, so that of two fits submitted together only the
+  // first queues a curve and the second waits for that child.
+  Stmt need(db, "INSERT OR IGNORE INTO library_needs (fit_id, key, base, w, needed) VALUES (?, ?, ?, ?, ?)");
+  // Not queued: a curve held or being built, or one the fit will not read
+  // (a stored curve of larger w ends before the deformation the fit needs:
+  // it searches w only above that one).
+  Stmt known(db,
+             "SELECT EXISTS (SELECT 1 FROM library_curves WHERE key = ?1) OR EXISTS (SELECT 1 FROM jobs "
+             "WHERE library_key = ?1 AND state IN (1, 2)) OR EXISTS (SELECT 1 FROM library_curves WHERE "
+             "base = ?2 AND w > ?3 AND end_deformation < ?4 * (1 - 1e-12))");
+  Stmt child(db, kInsertChildSql);
+  const std::string reason = "submitted (library simulation of fit " + job_name(fit_id) + ")";
+  int queued = 0;
+  for (const Store::LibraryChild& c : needs) {
+    need.reset();
+    need.bind(1, fit_id)
+        .bind(2, c.key)
+        .bind(3, c.base)
+        .bind(4, c.mooney_rivlin_w)
+        .bind(5, c.needed_deformation);
+    if (need.step() != SQLITE_DONE) return sqlite_error(db, "library need");
+    known.reset();
+    known.bind(1, c.key).bind(2, c.base).bind(3, c.mooney_rivlin_w).bind(4, c.needed_deformation);
+    if (known.step() != SQLITE_ROW) return sqlite_error(db, "library lookup");
+    const bool have = known.int64(0) != 0;
+    known.reset();
+    if (have) continue;
+    auto child_id = insert_child_job(db, child, c.spec, c.memory_bytes, now_ms, owner, fit_id, queued, c.key,
+                                     reason, "insert library child");
+    if (!child_id.ok()) return child_id.status();
+    ++queued;
+  }
+  Stmt count(db, "UPDATE jobs SET child_count = ?, library_fit = 1 WHERE id = ?");
+  count.bind(1, queued).bind(2, fit_id);
+  if (count.step() != SQLITE_DONE) return sqlite_error(db, "fit children");
+  return queued;
+}
+
 }  // namespace
 
 // One write transaction for a top-level submit: an earlier job of this
@@ -708,11 +755,21 @@ StatusOr<Store::Submitted> Store::submit_study(const v1::JobSpec& study,
     // Children: ordinary jobs of the same owner, queued in point order.
     Stmt insert(writer_, kInsertChildSql);
     const std::string reason = "submitted (study " + job_name(*study_id) + ")";
+    std::vector<std::int64_t> child_ids;
+    child_ids.reserve(children.size());
     for (std::size_t i = 0; i < children.size(); ++i) {
       auto child =
           insert_child_job(writer_, insert, children[i].spec, children[i].memory_bytes, now_ms, owner,
                            *study_id, static_cast<int>(i), std::nullopt, reason, "insert child");
       if (!child.ok()) return child.status();
+      child_ids.push_back(*child);
+    }
+    // Fit points' library simulations after every point, so the points keep
+    // consecutive ids; points that share a curve queue it once.
+    for (std::size_t i = 0; i < children.size(); ++i) {
+      if (children[i].library.empty()) continue;
+      auto queued = queue_library_children(writer_, child_ids[i], children[i].library, owner, now_ms);
+      if (!queued.ok()) return queued.status();
     }
     return *study_id;
   });
@@ -728,47 +785,11 @@ StatusOr<Store::Submitted> Store::submit_fit(const v1::JobSpec& fit, std::int64_
         insert_top_level_job(writer_, owner, request_id, fit, memory_bytes, now_ms, 0, true, "insert fit");
     if (!inserted.ok()) return inserted.status();
     const std::int64_t fit_id = *inserted;
-    // Under the write lock, so that of two fits submitted together only the
-    // first queues a curve and the second waits for that child.
-    Stmt need(writer_,
-              "INSERT OR IGNORE INTO library_needs (fit_id, key, base, w, needed) VALUES (?, ?, ?, ?, ?)");
-    // Not queued: a curve held or being built, or one the fit will not read
-    // (a stored curve of larger w ends before the deformation the fit needs:
-    // it searches w only above that one).
-    Stmt known(writer_,
-               "SELECT EXISTS (SELECT 1 FROM library_curves WHERE key = ?1) OR EXISTS (SELECT 1 FROM jobs "
-               "WHERE library_key = ?1 AND state IN (1, 2)) OR EXISTS (SELECT 1 FROM library_curves WHERE "
-               "base = ?2 AND w > ?3 AND end_deformation < ?4 * (1 - 1e-12))");
-    Stmt child(writer_, kInsertChildSql);
-    const std::string reason = "submitted (library simulation of fit " + job_name(fit_id) + ")";
-    int queued = 0;
-    for (const LibraryChild& c : needs) {
-      need.reset();
-      need.bind(1, fit_id)
-          .bind(2, c.key)
-          .bind(3, c.base)
-          .bind(4, c.mooney_rivlin_w)
-          .bind(5, c.needed_deformation);
-      if (need.step() != SQLITE_DONE) return sqlite_error(writer_, "library need");
-      known.reset();
-      known.bind(1, c.key).bind(2, c.base).bind(3, c.mooney_rivlin_w).bind(4, c.needed_deformation);
-      if (known.step() != SQLITE_ROW) return sqlite_error(writer_, "library lookup");
-      const bool have = known.int64(0) != 0;
-      known.reset();
-      if (have) continue;
-      auto child_id = insert_child_job(writer_, child, c.spec, c.memory_bytes, now_ms, owner, fit_id, queued,
-                                       c.key, reason, "insert library child");
-      if (!child_id.ok()) return child_id.status();
-      ++queued;
-    }
-    {
-      Stmt count(writer_, "UPDATE jobs SET child_count = ? WHERE id = ?");
-      count.bind(1, queued).bind(2, fit_id);
-      if (count.step() != SQLITE_DONE) return sqlite_error(writer_, "fit children");
-    }
+    auto queued = queue_library_children(writer_, fit_id, needs, owner, now_ms);
+    if (!queued.ok()) return queued.status();
     const std::string fit_reason =
-        queued > 0 ? "submitted (" + std::to_string(queued) + " library simulations queued as child jobs)"
-                   : "submitted";
+        *queued > 0 ? "submitted (" + std::to_string(*queued) + " library simulations queued as child jobs)"
+                    : "submitted";
     auto seq = append_event_row(writer_, fit_id, 0, state_event(v1::Job::QUEUED, fit_reason, ""),
                                 std::nullopt, now_ms);
     if (!seq.ok()) return seq.status();
@@ -893,10 +914,15 @@ StatusOr<v1::Job> Store::cancel(std::int64_t job_id, const std::string& reason, 
     // ends its watchers' streams after the children's.
     std::vector<CancelledChild> children;
     std::vector<std::pair<int, std::string>> leases;  // attempt, worker
-    {
-      Stmt find(writer_,
-                "SELECT id, state, attempt, worker_id FROM jobs WHERE parent_id = ? AND state IN (1, 2) "
-                "ORDER BY child_index");
+    // A study's fit points that wait for library simulations: those
+    // grandchildren first (their ChildUpdates go to the fit's log), then the
+    // children.
+    for (const char* sql :
+         {"SELECT id, state, attempt, worker_id FROM jobs WHERE parent_id IN (SELECT id FROM jobs WHERE "
+          "parent_id = ?) AND state IN (1, 2) ORDER BY id",
+          "SELECT id, state, attempt, worker_id FROM jobs WHERE parent_id = ? AND state IN (1, 2) "
+          "ORDER BY child_index"}) {
+      Stmt find(writer_, sql);
       find.bind(1, job_id);
       while (find.step() == SQLITE_ROW) {
         children.push_back({find.int64(0), 0, find.int64(1) == v1::Job::RUNNING});
@@ -1323,13 +1349,26 @@ Status Store::delete_job(std::int64_t job_id, std::vector<std::int64_t>* deleted
   }
   std::vector<std::int64_t> children;
   {
-    Stmt find(writer_, "SELECT id FROM jobs WHERE parent_id = ?");
+    // Its children, and the library simulations of a study's fit points.
+    Stmt find(
+        writer_,
+        "SELECT id FROM jobs WHERE parent_id = ?1 OR parent_id IN (SELECT id FROM jobs WHERE parent_id = "
+        "?1) ORDER BY id");
     find.bind(1, job_id);
     while (find.step() == SQLITE_ROW) children.push_back(find.int64(0));
   }
-  // A terminal study has only terminal children (it ends after its last child).
+  // A terminal study has only terminal children (it ends after its last
+  // child), and a fit ends only after its library simulations.
+  constexpr const char* kGrandchildren =
+      "(SELECT id FROM jobs WHERE parent_id IN (SELECT id FROM jobs WHERE parent_id = ?1))";
+  const std::string grand_events = std::string("DELETE FROM events WHERE job_id IN ") + kGrandchildren;
+  const std::string grand_checkpoints =
+      std::string("DELETE FROM checkpoints WHERE job_id IN ") + kGrandchildren;
+  const std::string grand_jobs = std::string("DELETE FROM jobs WHERE id IN ") + kGrandchildren;
   for (const char* sql :
-       {"DELETE FROM events WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
+       {grand_events.c_str(), grand_checkpoints.c_str(), grand_jobs.c_str(),
+        "DELETE FROM library_needs WHERE fit_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
+        "DELETE FROM events WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
         "DELETE FROM checkpoints WHERE job_id IN (SELECT id FROM jobs WHERE parent_id = ?1)",
         "DELETE FROM jobs WHERE parent_id = ?1", "DELETE FROM library_needs WHERE fit_id = ?1",
         "DELETE FROM events WHERE job_id = ?1", "DELETE FROM checkpoints WHERE job_id = ?1",

@@ -118,15 +118,30 @@ class Store {
                              std::int64_t estimated_memory_bytes, std::int64_t now_ms,
                              const std::string& owner = "");
 
+  // A curve a fit reads from the library (schema 5, see submit_fit).
+  struct LibraryChild {
+    std::string key;   // curve_key_text (jobs/fit/fit_library.h)
+    std::string base;  // the key without w
+    double mooney_rivlin_w = 1.0;
+    double needed_deformation = 0.0;  // the deepest deformation the fit asks of the key's curves
+    v1::JobSpec spec;
+    std::int64_t memory_bytes = 0;
+  };
+
   // Queues a study and all its children in one transaction: the study row
   // (child_count = children.size(), never leased, memory = the largest
   // child's) with its QUEUED event, then one ordinary job per child (owned
-  // by `owner`, parent_id = the study, child_index = its position). The
-  // request_id covers the whole study. The children were validated by the
-  // caller.
+  // by `owner`, parent_id = the study, child_index = its position; their ids
+  // follow the study's in point order). The request_id covers the whole
+  // study. The children were validated by the caller. A child with library
+  // needs is a fit that reads library curves: it is queued as submit_fit
+  // queues a fit (library_fit = 1, its library_needs, and a grandchild job
+  // per curve nobody holds or builds, parent_id = the fit child), after all
+  // the points; cancel and delete of the study reach those grandchildren.
   struct StudyChild {
     v1::JobSpec spec;
     std::int64_t memory_bytes = 0;
+    std::vector<LibraryChild> library;
   };
   StatusOr<Submitted> submit_study(const v1::JobSpec& study, const std::vector<StudyChild>& children,
                                    const std::string& request_id, std::int64_t now_ms,
@@ -146,14 +161,6 @@ class Store {
   // deformation the fits reading that key need, cancels the queued and
   // running jobs of the key's smaller w that only such fits need (they
   // search w above it: jobs/fit/fit_job.cc).
-  struct LibraryChild {
-    std::string key;   // curve_key_text (jobs/fit/fit_library.h)
-    std::string base;  // the key without w
-    double mooney_rivlin_w = 1.0;
-    double needed_deformation = 0.0;  // the deepest deformation the fit asks of the key's curves
-    v1::JobSpec spec;
-    std::int64_t memory_bytes = 0;
-  };
   StatusOr<Submitted> submit_fit(const v1::JobSpec& fit, std::int64_t memory_bytes,
                                  const std::vector<LibraryChild>& needs, const std::string& request_id,
                                  std::int64_t now_ms, const std::string& owner = "");

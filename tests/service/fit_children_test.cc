@@ -4,7 +4,8 @@
 // fit runs when they are done and reads their curves from the server; a
 // second fit of the same geometry queues none and simulates nothing; two
 // fits submitted together build each curve once; cancel and delete of a fit
-// cascade to its children. Tiny library numerics (200 vertices, a few load
+// cascade to its children; a sweep of fits builds the curves its points
+// share once. Tiny library numerics (200 vertices, a few load
 // points): a few seconds of simulation.
 #include <google/protobuf/util/json_util.h>
 
@@ -131,6 +132,47 @@ TEST_F(FitChildrenTest, TwoFitsAtOnceBuildEachCurveOnceAndCancelAndDeleteCascade
     v1::Job gone;
     EXPECT_EQ(client_->get(kid.id(), &gone).error_code(), grpc::StatusCode::NOT_FOUND) << kid.id();
   }
+}
+
+// A sweep of fits (a study whose base is a fit): its points read the library
+// like submitted fits. Two points that differ only in the contact window
+// read the same curves: the first point's library children build them once,
+// the second queues none, and both fits run after the curves exist.
+TEST_F(FitChildrenTest, ASweepOfFitsBuildsTheSharedCurvesOnceAsChildrenOfItsFirstPoint) {
+  start();
+  int code = 0;
+  const std::string text = run_command(cli_ + " fit" + fit_args(1, 5) + " --print-spec", &code);
+  ASSERT_EQ(code, 0) << text;
+  v1::JobSpec base;
+  ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(text, &base).ok()) << text;
+  v1::JobSpec study;
+  study.set_name("fit sweep");
+  *study.mutable_study()->mutable_base() = base;
+  v1::StudyAxis* axis = study.mutable_study()->add_axes();
+  axis->set_path("fit.contactWindowRadii");
+  axis->add_values("0.05");
+  axis->add_values("0.1");
+  const std::string id = submit(study);
+  ASSERT_TRUE(wait_state(id, v1::Job::SUCCEEDED, 90s)) << get(id).reason();
+  const std::vector<v1::Job> points = children(id);
+  ASSERT_EQ(points.size(), 2u);
+  for (const v1::Job& point : points) {
+    EXPECT_EQ(point.state(), v1::Job::SUCCEEDED) << point.id() << ": " << point.reason();
+    ASSERT_TRUE(point.spec().has_fit());
+  }
+  const int queued = points[0].child_count();
+  EXPECT_GT(queued, 0) << "the first point queues the curves the server lacks";
+  EXPECT_LE(queued, 15);
+  EXPECT_EQ(points[1].child_count(), 0) << "the second point reads the same curves: none queued twice";
+  for (const v1::Job& sim : children(points[0].id())) {
+    EXPECT_EQ(sim.state(), v1::Job::SUCCEEDED) << sim.id() << ": " << sim.reason();
+    EXPECT_TRUE(sim.spec().has_compression());
+  }
+  // The server now holds the curves: a plain fit of the same geometry simulates nothing.
+  const json again = fit(2, 5);
+  ASSERT_TRUE(again.is_object());
+  EXPECT_EQ(again["simulations_run"].get<int>(), 0);
+  EXPECT_EQ(again["library"]["server_curves"].get<int>(), queued);
 }
 
 }  // namespace

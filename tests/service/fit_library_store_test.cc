@@ -4,7 +4,9 @@
 // leased only when none of the jobs building its curves is queued or
 // running; a child that ends leaves its curve (from its force samples,
 // checked: a hostile report stores nothing); curves read back are checked
-// again and bounded; cancel and delete of a fit cascade to its children.
+// again and bounded; cancel and delete of a fit cascade to its children;
+// a study whose points are fits queues their curves the same way, and its
+// cancel and delete reach them.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 #include <unistd.h>
@@ -258,6 +260,91 @@ TEST_F(FitLibraryStoreTest, CancelAndDeleteOfAFitCascadeToItsChildren) {
   for (std::int64_t id : deleted) EXPECT_EQ(store_->get(id).status().code(), StatusCode::kNotFound);
   // Its needs went with it: a new fit of the keys queues them again.
   EXPECT_EQ(submit_fit("b", 3).child_count(), 3);
+}
+
+// A study whose points are fits (a sweep of fits): each point reads the
+// library like a submitted fit; curves two points share are built once, the
+// points keep consecutive ids after the study's and wait for their curves.
+TEST_F(FitLibraryStoreTest, AStudyOfFitsQueuesEachCurveOnceAndItsPointsWaitForThem) {
+  v1::JobSpec study_spec;
+  study_spec.set_name("sweep of fits");
+  std::vector<Store::StudyChild> points;
+  points.push_back({fit_spec("p0"), 500, needs(3)});     // k0, k1, k2
+  points.push_back({fit_spec("p1"), 500, needs(3, 1)});  // k1, k2 shared; k3 new
+  auto submitted = store_->submit_study(study_spec, points, "", 1000, "alice");
+  ASSERT_TRUE(submitted.ok()) << submitted.status().to_string();
+  const v1::Job study = submitted->job;
+  EXPECT_EQ(study.child_count(), 2);
+  const std::int64_t study_id = *parse_job_name(study.id());
+  auto fits = store_->list(0, 100, v1::Job::STATE_UNSPECIFIED, nullptr, study_id);
+  ASSERT_TRUE(fits.ok());
+  ASSERT_EQ(fits->size(), 2u) << "the library simulations are the points' children, not the study's";
+  EXPECT_EQ(*parse_job_name((*fits)[0].id()), study_id + 1);
+  EXPECT_EQ(*parse_job_name((*fits)[1].id()), study_id + 2);
+  EXPECT_EQ((*fits)[0].child_count(), 3);
+  EXPECT_EQ((*fits)[1].child_count(), 1) << "k1 and k2 are built for the first point";
+  EXPECT_EQ(store_->count(v1::Job::QUEUED), 6) << "two fits and four library simulations";
+
+  std::vector<Claim> library;
+  for (int i = 0; i < 4; ++i) {
+    auto c = claim();
+    ASSERT_TRUE(c.has_value());
+    EXPECT_TRUE(c->job.parent_job_id() == (*fits)[0].id() || c->job.parent_job_id() == (*fits)[1].id())
+        << c->job.parent_job_id();
+    library.push_back(*c);
+  }
+  EXPECT_FALSE(claim().has_value()) << "no point is leased while its curves are being built";
+  for (const Claim& c : library) run_child(c);
+  EXPECT_EQ(store_->count_library_curves(), 4);
+  auto started = store_->get(study_id);
+  ASSERT_TRUE(started.ok());
+  EXPECT_EQ(started->state(), v1::Job::QUEUED) << "library simulations do not start the study";
+
+  for (int i = 0; i < 2; ++i) {
+    auto c = claim();
+    ASSERT_TRUE(c.has_value());
+    EXPECT_EQ(c->job.id(), (*fits)[static_cast<std::size_t>(i)].id());
+    auto curves = store_->library_curves_for(*parse_job_name(c->job.id()), 1 << 20);
+    ASSERT_TRUE(curves.ok());
+    ASSERT_EQ(curves->curves.size(), 3u);
+    EXPECT_EQ(curves->curves[0].key(), i == 0 ? "k0" : "k1");
+    ASSERT_TRUE(store_->finish(*parse_job_name(c->job.id()), c->lease_token, 10, 2300).ok());
+  }
+  auto done = store_->get(study_id);
+  ASSERT_TRUE(done.ok());
+  EXPECT_EQ(done->state(), v1::Job::SUCCEEDED) << done->reason();
+  EXPECT_EQ(done->fraction_done(), 1.0);
+}
+
+TEST_F(FitLibraryStoreTest, CancelAndDeleteOfAStudyOfFitsReachTheLibrarySimulations) {
+  std::vector<Store::StudyChild> points;
+  points.push_back({fit_spec("p0"), 500, needs(3)});
+  points.push_back({fit_spec("p1"), 500, needs(3, 1)});
+  auto submitted = store_->submit_study(v1::JobSpec{}, points, "", 1000, "alice");
+  ASSERT_TRUE(submitted.ok()) << submitted.status().to_string();
+  const std::int64_t study_id = *parse_job_name(submitted->job.id());
+  auto running = claim();  // one library simulation running, three queued
+  ASSERT_TRUE(running.has_value());
+  std::vector<Store::CancelledChild> cancelled;
+  auto job = store_->cancel(study_id, "by the user", 3000, &cancelled);
+  ASSERT_TRUE(job.ok()) << job.status().to_string();
+  EXPECT_EQ(job->state(), v1::Job::CANCELLED);
+  ASSERT_EQ(cancelled.size(), 6u) << "two points and their four library simulations";
+  int was_running = 0;
+  for (const auto& c : cancelled) {
+    was_running += c.was_running ? 1 : 0;
+    EXPECT_EQ(store_->get(c.id)->state(), v1::Job::CANCELLED) << job_name(c.id);
+  }
+  EXPECT_EQ(was_running, 1) << "the worker of the running simulation is told";
+  EXPECT_FALSE(claim().has_value());
+  EXPECT_EQ(store_->count(v1::Job::QUEUED), 0);
+
+  std::vector<std::int64_t> deleted;
+  ASSERT_TRUE(store_->delete_job(study_id, &deleted).ok());
+  EXPECT_EQ(deleted.size(), 6u);
+  for (std::int64_t id : deleted) EXPECT_EQ(store_->get(id).status().code(), StatusCode::kNotFound);
+  // The points' needs went with them: a new fit of the keys queues them again.
+  EXPECT_EQ(submit_fit("b", 4).child_count(), 4);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <set>
 #include <system_error>
 #include <vector>
 
@@ -491,6 +492,7 @@ StatusOr<v1::SubmitJobResponse> JobService::submit_study(const v1::SubmitJobRequ
   // Every child validated and memory-checked before anything is queued.
   std::vector<Store::StudyChild> children;
   std::vector<std::int64_t> bounds;
+  std::set<std::string> library_keys;  // of every fit point
   children.reserve(points->size());
   const std::string base_name = spec.study().base().name().empty() ? spec.name() : spec.study().base().name();
   for (std::size_t i = 0; i < points->size(); ++i) {
@@ -521,6 +523,15 @@ StatusOr<v1::SubmitJobResponse> JobService::submit_study(const v1::SubmitJobRequ
       auto needs = library_children(point.spec);
       if (!needs.ok()) return Status(needs.status().code(), where + ": " + needs.status().message());
       library = std::move(*needs);
+      // Bounded over the whole study, as for one fit: points of distinct
+      // probe ratios or numerics would otherwise multiply the child rows.
+      for (const Store::LibraryChild& c : library) library_keys.insert(c.key);
+      if (library_keys.size() > static_cast<std::size_t>(options_.max_fit_library_children)) {
+        return Status(StatusCode::kResourceExhausted,
+                      where + ": the study's fit points read more than " +
+                          std::to_string(options_.max_fit_library_children) +
+                          " distinct library curves; sweep fewer probe ratios or numerics, or fix w");
+      }
     }
     children.push_back({std::move(point.spec), memory, std::move(library)});
   }

@@ -758,6 +758,53 @@ TEST_F(JobServiceTest, StudySubmitValidatesEveryChildBeforeQueuingAny) {
   EXPECT_EQ(listed->jobs_size(), 0) << "nothing of a refused study is queued";
 }
 
+// A sweep of fits: each point's library curves are bounded over the whole
+// study (distinct probe ratios multiply them), and the curves the points
+// share are queued once, as children of the first point.
+TEST_F(JobServiceTest, StudyOfFitsBoundsItsLibraryCurvesAndQueuesSharedOnesOnce) {
+  v1::SubmitJobRequest request;
+  auto* study = request.mutable_spec()->mutable_study();
+  v1::FitSpec* fit = study->mutable_base()->mutable_fit();
+  fit->set_geometry(v1::FIT_GEOMETRY_PROBE);
+  fit->set_radius_m(8.6e-6);
+  fit->set_probe_radius_m(2e-6);
+  fit->set_w_free(true);
+  v1::FitCurve* curve = fit->add_curves();
+  for (int i = 0; i < 6; ++i) {
+    const double d = 0.3e-6 * i;
+    curve->add_indentation_m(d);
+    curve->add_force_n(1e-9 * std::pow(d / 1e-6, 1.5));
+  }
+  auto* axis = study->add_axes();
+  axis->set_path("fit.probeRadiusM");
+  axis->add_values("1e-6");
+  axis->add_values("2e-6");
+  JobServiceOptions options = service_->options();
+  options.max_fit_library_children = 15;  // one point's 10 grid w pass, two ratios' 20 do not
+  JobService bounded(*store_, notifier_, options);
+  auto refused = bounded.submit(request);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(
+      refused.status().message().rfind(
+          "study.axes[0].values[1] (fit.probeRadiusM=2e-6): the study's fit points read more than 15", 0),
+      0u)
+      << refused.status().message();
+
+  axis->set_path("fit.contactWindowRadii");
+  axis->set_values(0, "0.05");
+  axis->set_values(1, "0.1");
+  auto accepted = bounded.submit(request);
+  ASSERT_TRUE(accepted.ok()) << accepted.status().to_string();
+  v1::ListJobsRequest children;
+  children.set_parent_job_id(accepted->job().id());
+  auto points = bounded.list(children);
+  ASSERT_TRUE(points.ok());
+  ASSERT_EQ(points->jobs_size(), 2);
+  EXPECT_EQ(points->jobs(0).child_count(), 10) << "the 10 grid values of w, as children of the first point";
+  EXPECT_EQ(points->jobs(1).child_count(), 0) << "the same curves: queued once";
+}
+
 // The children's result files name an author: the base spec's, else the
 // study's, else the submitting user.
 TEST_F(JobServiceTest, StudyChildrenCarryTheAuthor) {

@@ -162,15 +162,8 @@ class EquilibriumSolver {
   std::int64_t split_vertex(int rank, int size) const;
   void build_preconditioner(double shift);
   // Projected PCG for (K + shift diag K) dx = rhs; returns CG iterations.
-  // One thread: the textbook recurrences; a team: solve_linear_pipelined.
   int solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance, double absolute_tolerance,
                    double shift, Eigen::VectorXd& dx, bool& negative_curvature);
-  // The same solve in the pipelined form (one reduction and two barriers per
-  // iteration) on a team of `team` threads, block Jacobi only.
-  int solve_linear_pipelined(const Eigen::VectorXd& rhs, double relative_tolerance, double absolute_tolerance,
-                             double shift, Eigen::VectorXd& dx, bool& negative_curvature, int team);
-  // Per-vertex prefix sums of the product work (split_vertex), rebuilt when the size changes.
-  void update_work_prefix();
 
   const elastic::ElasticBody* body_;
   std::vector<double> reference_positions_;
@@ -203,12 +196,6 @@ class EquilibriumSolver {
   std::vector<double> reduction_slots_;     // per thread partial sums, two rounds
   std::vector<std::int64_t> work_prefix_;   // per vertex, prefix sum of its product work
   std::vector<double> zero_mode_;           // stands for the absent held modes (at most 6)
-  // Pipelined CG: its extra recurrences (u = M r, w = A u, m = M w, n = A m,
-  // s = A p, q = M s, z = A q), the held modes' products A Q_j and the
-  // volumetric scratch of those products.
-  Eigen::VectorXd pu_, pw_, pm_, pm_next_, pn_, ps_, pq_, pz_;
-  std::vector<Eigen::VectorXd> mode_products_;
-  std::vector<double> mode_scratch_;
 };
 
 }  // namespace cellflow::solver

@@ -1,8 +1,8 @@
 // The linear solves of EquilibriumSolver: the product with K + shift diag K
 // in the 3x3 vertex-block layout (matvec), projected preconditioned CG with
-// the Steihaug stop at negative curvature (solve_linear on one thread, its
-// pipelined form solve_linear_pipelined on a team), and the preconditioner,
-// incomplete Cholesky of the shifted K or block Jacobi (build_preconditioner).
+// the Steihaug stop at negative curvature (solve_linear), and the
+// preconditioner, incomplete Cholesky of the shifted K or block Jacobi
+// (build_preconditioner).
 #include <omp.h>
 
 #include <Eigen/Dense>
@@ -21,9 +21,8 @@ namespace {
 // more in barriers than the second thread gives.
 constexpr std::int64_t kMinParallelDofs = 6000;
 // Reduced values per thread and round: r.r, r.z and the held modes'
-// components of z (at most 6), or p.q and those of q; the pipelined solve's
-// set-up reduces the most, Q^T A Q (21), Q^T m, (A Q)^T m (6 each) and r.r.
-constexpr int kReductionSlots = 40;
+// components of z (at most 6), or p.q and those of q.
+constexpr int kReductionSlots = 16;
 
 int team_size(int threads) {
   return threads > 0 ? threads : omp_get_max_threads();
@@ -71,22 +70,6 @@ void EquilibriumSolver::multiply_rows(const double* x, double* out, double shift
   }
 }
 
-void EquilibriumSolver::update_work_prefix() {
-  const std::int64_t nv = static_cast<std::int64_t>(body_->num_vertices);
-  if (work_prefix_.size() == static_cast<std::size_t>(nv)) return;
-  work_prefix_.resize(static_cast<std::size_t>(nv));
-  std::int64_t sum = 0;
-  for (std::int64_t v = 0; v < nv; ++v) {
-    const std::int64_t blocks = block_neighbour_offsets_.empty()
-                                    ? (tangent_.stiffness().outerIndexPtr()[3 * v + 1] -
-                                       tangent_.stiffness().outerIndexPtr()[3 * v]) /
-                                          3
-                                    : block_neighbour_offsets_[v + 1] - block_neighbour_offsets_[v];
-    sum += 1 + blocks + tangent_.volumetric_row_length(static_cast<std::size_t>(v));
-    work_prefix_[v] = sum;
-  }
-}
-
 std::int64_t EquilibriumSolver::split_vertex(int rank, int size) const {
   // Vertex ranges of equal work: the prefix sums of the 3x3 blocks of K and
   // the entries of G per vertex (the two passes of every product).
@@ -100,10 +83,7 @@ std::int64_t EquilibriumSolver::split_vertex(int rank, int size) const {
 int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance,
                                     double absolute_tolerance, double shift, Eigen::VectorXd& dx,
                                     bool& negative_curvature) {
-  // Projected PCG for (K + shift diag K) dx = rhs. A team runs the pipelined
-  // form (solve_linear_pipelined, two barriers an iteration); the team code
-  // below is kept for the team of one (incomplete Cholesky, small meshes).
-  // The whole solve is one
+  // Projected PCG for (K + shift diag K) dx = rhs. The whole solve is one
   // parallel region: each thread owns a vertex range of every vector and does
   // the products, the preconditioner, the projections and the updates there;
   // an iteration meets four barriers (p complete before the product, the
@@ -118,10 +98,6 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
   const std::int64_t n = 3 * nv;
   // The incomplete Cholesky triangular solves are sequential: one thread.
   const int team = n > kMinParallelDofs && !incomplete_cholesky ? team_size(options_.threads) : 1;
-  if (team > 1) {
-    return solve_linear_pipelined(rhs, relative_tolerance, absolute_tolerance, shift, dx, negative_curvature,
-                                  team);
-  }
   negative_curvature = false;
   dx.setZero(n);
   r_ = rhs;
@@ -131,7 +107,19 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
   const bool volumetric = tangent_.has_volumetric_operator();
   volumetric_scratch_.resize(static_cast<std::size_t>(volumetric ? nv : 0));
   reduction_slots_.assign(static_cast<std::size_t>(2 * team * kReductionSlots), 0.0);
-  update_work_prefix();
+  if (work_prefix_.size() != static_cast<std::size_t>(nv)) {
+    work_prefix_.resize(static_cast<std::size_t>(nv));
+    std::int64_t sum = 0;
+    for (std::int64_t v = 0; v < nv; ++v) {
+      const std::int64_t blocks = block_neighbour_offsets_.empty()
+                                      ? (tangent_.stiffness().outerIndexPtr()[3 * v + 1] -
+                                         tangent_.stiffness().outerIndexPtr()[3 * v]) /
+                                            3
+                                      : block_neighbour_offsets_[v + 1] - block_neighbour_offsets_[v];
+      sum += 1 + blocks + tangent_.volumetric_row_length(static_cast<std::size_t>(v));
+      work_prefix_[v] = sum;
+    }
+  }
   const int num_modes = static_cast<int>(rigid_modes_.size());
   const double* modes[6] = {};
   zero_mode_.assign(static_cast<std::size_t>(n), 0.0);
@@ -291,283 +279,6 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
 #pragma omp parallel num_threads(team)
     run(omp_get_thread_num(), omp_get_num_threads());
   }
-  negative_curvature = curvature_failed;
-  return iterations;
-}
-
-int EquilibriumSolver::solve_linear_pipelined(const Eigen::VectorXd& rhs, double relative_tolerance,
-                                              double absolute_tolerance, double shift, Eigen::VectorXd& dx,
-                                              bool& negative_curvature, int team) {
-  // Pipelined projected PCG (Ghysels & Vanroose 2014, preconditioned
-  // pipelined CG; Chronopoulos & Gear's single reduction): besides r and the
-  // preconditioned u = M r it carries w = A u, and the recurrences
-  //   s = A p, q = M s, z = A q
-  // replace the two products of an iteration by one, n = A m of m = M w,
-  // whose input is known before the iteration's reduction. The reduction of
-  // gamma = r.u, delta = w.u and r.r then shares its barrier with "m is
-  // complete", and alpha = gamma / (delta - beta gamma / alpha_prev) is the
-  // same step as textbook CG in exact arithmetic. An iteration meets two
-  // barriers (that one and the volumetric gather before its scatter) where
-  // solve_linear's meets four; every wake-up of a passively waiting thread
-  // costs tens of microseconds on a VM, a fifth of an iteration.
-  // The held modes: A below is P (K + shift diag K) P with P = I - Q Q^T, the
-  // operator of solve_linear, and the preconditioner P M P. With c = Q^T m
-  // and e = (K Q)^T m (dot products with m, reduced with gamma and delta),
-  //   P m = m - Q c,   A P m = K m - (K Q) c - Q (e - Q^T K Q c),
-  // so the projections cost no barrier; K Q (one product per held mode) is
-  // formed once per solve.
-  const std::int64_t nv = static_cast<std::int64_t>(body_->num_vertices);
-  const std::int64_t n = 3 * nv;
-  negative_curvature = false;
-  dx.setZero(n);
-  for (Eigen::VectorXd* v : {&r_, &pu_, &pw_, &pm_, &pm_next_, &pn_, &ps_, &pq_, &pz_, &p_}) v->resize(n);
-  const bool volumetric = tangent_.has_volumetric_operator();
-  const int num_modes = static_cast<int>(rigid_modes_.size());
-  volumetric_scratch_.resize(static_cast<std::size_t>(volumetric ? nv : 0));
-  mode_scratch_.resize(static_cast<std::size_t>(volumetric ? nv * num_modes : 0));
-  mode_products_.resize(static_cast<std::size_t>(num_modes));
-  for (Eigen::VectorXd& v : mode_products_) v.resize(n);
-  reduction_slots_.assign(static_cast<std::size_t>(2 * team * kReductionSlots), 0.0);
-  update_work_prefix();
-  zero_mode_.assign(static_cast<std::size_t>(n), 0.0);
-  const double* modes[6] = {};
-  const double* products[6] = {};
-  for (int i = 0; i < 6; ++i) {
-    modes[i] = i < num_modes ? rigid_modes_[i].data() : zero_mode_.data();
-    products[i] = i < num_modes ? mode_products_[i].data() : zero_mode_.data();
-  }
-  const Preconditioning& pc = *preconditioning_;
-  int iterations = 0;
-  bool curvature_failed = false;
-
-  auto run = [&](int rank, int size) {
-    const std::int64_t vb = split_vertex(rank, size), ve = split_vertex(rank + 1, size);
-    const std::int64_t b = 3 * vb, e = 3 * ve;  // this thread's unknowns
-    double* r = r_.data();
-    double* u = pu_.data();
-    double* w = pw_.data();
-    // m alternates between two arrays: without the volumetric part no barrier
-    // separates the product's reads of m on the neighbours from the next
-    // iteration's write of m
-    double* m = pm_next_.data();
-    double* m_other = pm_.data();
-    double* nn = pn_.data();
-    double* sv = ps_.data();
-    double* qv = pq_.data();
-    double* zv = pz_.data();
-    double* p = p_.data();
-    double* x = dx.data();
-    double* scratch = volumetric_scratch_.data();
-    int round = 0;
-    // Adds every thread's values[0 .. count) in rank order (same total on
-    // every thread); alternating slot sets make one barrier enough.
-    auto reduce = [&](double* values, int count) {
-      double* slots =
-          reduction_slots_.data() + static_cast<std::size_t>((round & 1) * size * kReductionSlots);
-      std::copy(values, values + count, slots + rank * kReductionSlots);
-      ++round;
-#pragma omp barrier
-      for (int c = 0; c < count; ++c) {
-        double total = 0.0;
-        for (int t = 0; t < size; ++t) total += slots[t * kReductionSlots + c];
-        values[c] = total;
-      }
-    };
-    // out = M v on the range (block Jacobi)
-    auto precondition = [&](const double* v, double* out) {
-      for (std::int64_t i = vb; i < ve; ++i) {
-        const double* mi = pc.block_inverse.data() + 9 * i;
-        const double* vi = v + 3 * i;
-        double* o = out + 3 * i;
-        for (int a = 0; a < 3; ++a) o[a] = mi[3 * a] * vi[0] + mi[3 * a + 1] * vi[1] + mi[3 * a + 2] * vi[2];
-      }
-    };
-    // (K + shift diag K) v on the range, the volumetric part gathered
-    // (scratch complete after a barrier) and scattered separately.
-    auto product_rows = [&](const double* v, double* out, double* gathered) {
-      multiply_rows(v, out, shift, vb, ve);
-      if (volumetric) tangent_.volumetric_gather(v, vb, ve, gathered);
-    };
-    auto product_scatter = [&](const double* gathered, double* out) {
-      if (volumetric) tangent_.add_volumetric_scatter(gathered, vb, ve, out);
-    };
-    // red = {Q^T v, (K Q)^T v} over six padded modes: 12 values
-    auto mode_dots = [&](const double* v, double* red) {
-      double c0 = 0, c1 = 0, c2 = 0, c3 = 0, c4 = 0, c5 = 0, e0 = 0, e1 = 0, e2 = 0, e3 = 0, e4 = 0, e5 = 0;
-#pragma omp simd reduction(+ : c0, c1, c2, c3, c4, c5, e0, e1, e2, e3, e4, e5)
-      for (std::int64_t k = b; k < e; ++k) {
-        const double vk = v[k];
-        c0 += modes[0][k] * vk;
-        c1 += modes[1][k] * vk;
-        c2 += modes[2][k] * vk;
-        c3 += modes[3][k] * vk;
-        c4 += modes[4][k] * vk;
-        c5 += modes[5][k] * vk;
-        e0 += products[0][k] * vk;
-        e1 += products[1][k] * vk;
-        e2 += products[2][k] * vk;
-        e3 += products[3][k] * vk;
-        e4 += products[4][k] * vk;
-        e5 += products[5][k] * vk;
-      }
-      const double all[12] = {c0, c1, c2, c3, c4, c5, e0, e1, e2, e3, e4, e5};
-      std::copy(all, all + 12, red);
-    };
-    double qkq[6][6] = {};  // Q^T K Q
-    // h = e - Q^T K Q c: the held part of K m - (K Q) c
-    auto held_coefficients = [&](const double* c, const double* ek, double* h) {
-      for (int i = 0; i < 6; ++i) {
-        double sum = ek[i];
-        for (int j = 0; j < 6; ++j) sum -= qkq[i][j] * c[j];
-        h[i] = sum;
-      }
-    };
-
-    // Set-up. K Q_j on the range (Q is complete: no barrier before), Q^T rhs.
-    for (int j = 0; j < num_modes; ++j) {
-      product_rows(modes[j], mode_products_[j].data(), mode_scratch_.data() + j * nv);
-    }
-    double red[kReductionSlots] = {};
-    {
-      double c[6] = {};
-      const double* f = rhs.data();
-      for (std::int64_t k = b; k < e; ++k) {
-        for (int j = 0; j < 6; ++j) c[j] += modes[j][k] * f[k];
-      }
-      std::copy(c, c + 6, red);
-      reduce(red, 6);  // also: the gathers of K Q are complete
-    }
-    const double cr[6] = {red[0], red[1], red[2], red[3], red[4], red[5]};
-    for (int j = 0; j < num_modes; ++j)
-      product_scatter(mode_scratch_.data() + j * nv, mode_products_[j].data());
-    // r = P rhs, m = M r; reduce Q^T m, (K Q)^T m, r.r and Q^T K Q
-    double rr = 0.0;
-    for (std::int64_t k = b; k < e; ++k) {
-      r[k] = rhs[k] - (cr[0] * modes[0][k] + cr[1] * modes[1][k] + cr[2] * modes[2][k] + cr[3] * modes[3][k] +
-                       cr[4] * modes[4][k] + cr[5] * modes[5][k]);
-      rr += r[k] * r[k];
-    }
-    precondition(r, m);
-    mode_dots(m, red);
-    red[12] = rr;
-    int slot = 13;
-    for (int i = 0; i < num_modes; ++i) {
-      for (int j = i; j < num_modes; ++j) {
-        double sum = 0.0;
-        const double* qi = modes[i];
-        const double* kqj = products[j];
-#pragma omp simd reduction(+ : sum)
-        for (std::int64_t k = b; k < e; ++k) sum += qi[k] * kqj[k];
-        red[slot++] = sum;
-      }
-    }
-    reduce(red, slot);  // also: m is complete
-    slot = 13;
-    for (int i = 0; i < num_modes; ++i) {
-      for (int j = i; j < num_modes; ++j) {
-        qkq[i][j] = red[slot];
-        qkq[j][i] = red[slot];  // symmetric in exact arithmetic: K is
-        ++slot;
-      }
-    }
-    const double target = std::max(relative_tolerance * std::sqrt(red[12]), absolute_tolerance);
-    if (std::sqrt(red[12]) <= target) return;
-    double c[6], h[6];
-    std::copy(red, red + 6, c);
-    held_coefficients(c, red + 6, h);
-    // u = P m, w = A u
-    product_rows(m, w, scratch);
-    for (std::int64_t k = b; k < e; ++k) {
-      u[k] = m[k] - (c[0] * modes[0][k] + c[1] * modes[1][k] + c[2] * modes[2][k] + c[3] * modes[3][k] +
-                     c[4] * modes[4][k] + c[5] * modes[5][k]);
-      p[k] = sv[k] = qv[k] = zv[k] = 0.0;
-    }
-    if (volumetric) {
-#pragma omp barrier
-    }
-    product_scatter(scratch, w);
-    auto remove_held = [&](double* v) {  // v -= (K Q) c + Q h on the range
-#pragma omp simd
-      for (std::int64_t k = b; k < e; ++k) {
-        v[k] -= c[0] * products[0][k] + c[1] * products[1][k] + c[2] * products[2][k] +
-                c[3] * products[3][k] + c[4] * products[4][k] + c[5] * products[5][k] + h[0] * modes[0][k] +
-                h[1] * modes[1][k] + h[2] * modes[2][k] + h[3] * modes[3][k] + h[4] * modes[4][k] +
-                h[5] * modes[5][k];
-      }
-    };
-    remove_held(w);
-
-    double gamma_prev = 0.0, alpha_prev = 0.0;
-    for (int it = 0; it < options_.max_cg_iterations; ++it) {
-      // gamma = r.u, delta = w.u, r.r; m = M w with its mode components
-      double gamma = 0.0, delta = 0.0;
-      rr = 0.0;
-      std::swap(m, m_other);
-#pragma omp simd reduction(+ : gamma, delta, rr)
-      for (std::int64_t k = b; k < e; ++k) {
-        gamma += r[k] * u[k];
-        delta += w[k] * u[k];
-        rr += r[k] * r[k];
-      }
-      precondition(w, m);
-      mode_dots(m, red);
-      red[12] = gamma;
-      red[13] = delta;
-      red[14] = rr;
-      reduce(red, 15);  // also: m is complete
-      gamma = red[12];
-      delta = red[13];
-      rr = red[14];
-      if (it > 0 && std::sqrt(rr) <= target) {
-        if (rank == 0) iterations = it;
-        return;
-      }
-      const double beta = it > 0 ? gamma / gamma_prev : 0.0;
-      const double curvature = it > 0 ? delta - beta * gamma / alpha_prev : delta;  // p.A p
-      if (!(curvature > 0.0)) {
-        // Steihaug: stop at the last iterate; with none yet, the preconditioned
-        // residual is a descent direction for the line search to scale.
-        if (rank == 0) {
-          curvature_failed = true;
-          iterations = it + 1;
-        }
-        if (it == 0) std::copy(u + b, u + e, x + b);
-        return;
-      }
-      const double alpha = gamma / curvature;
-      std::copy(red, red + 6, c);
-      held_coefficients(c, red + 6, h);
-      // n = A P m: the product of m (complete), then its held part
-      product_rows(m, nn, scratch);
-      if (volumetric) {
-#pragma omp barrier
-      }
-      product_scatter(scratch, nn);
-#pragma omp simd
-      for (std::int64_t k = b; k < e; ++k) {
-        const double nk = nn[k] - (c[0] * products[0][k] + c[1] * products[1][k] + c[2] * products[2][k] +
-                                   c[3] * products[3][k] + c[4] * products[4][k] + c[5] * products[5][k] +
-                                   h[0] * modes[0][k] + h[1] * modes[1][k] + h[2] * modes[2][k] +
-                                   h[3] * modes[3][k] + h[4] * modes[4][k] + h[5] * modes[5][k]);
-        const double mk = m[k] - (c[0] * modes[0][k] + c[1] * modes[1][k] + c[2] * modes[2][k] +
-                                  c[3] * modes[3][k] + c[4] * modes[4][k] + c[5] * modes[5][k]);
-        zv[k] = nk + beta * zv[k];
-        qv[k] = mk + beta * qv[k];
-        sv[k] = w[k] + beta * sv[k];
-        p[k] = u[k] + beta * p[k];
-        x[k] += alpha * p[k];
-        r[k] -= alpha * sv[k];
-        u[k] -= alpha * qv[k];
-        w[k] -= alpha * zv[k];
-      }
-      gamma_prev = gamma;
-      alpha_prev = alpha;
-    }
-    if (rank == 0) iterations = options_.max_cg_iterations;
-  };
-
-#pragma omp parallel num_threads(team)
-  run(omp_get_thread_num(), omp_get_num_threads());
   negative_curvature = curvature_failed;
   return iterations;
 }

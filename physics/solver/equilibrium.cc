@@ -41,10 +41,11 @@ constexpr double kHardStateForcing = 1e-2;
 // Below this many vertices the tangent is assembled on one thread whatever
 // the team: the assembly meets a barrier per tet colour (elastic::
 // TangentAssembler), and on the curve (2967 vertices, 2 threads)
-// those were 80k of the run's 126k voluntary context switches (45k with the
-// assembly on one thread), each a wake-up of tens of microseconds on a VM
-// against 5 ms of assembly work per Newton iteration to share. The same
-// crossover as the scenes' choice of threads (quasi_static.cc).
+// those were 80k of the run's 155k voluntary context switches (74.5k with the
+// assembly on one thread; CPU 26.7 -> 22.4 s), each a wake-up of tens of
+// microseconds on a VM, against the ~5 ms per Newton iteration that a second
+// thread takes off the assembly. The crossover is not measured; 6000 is the
+// scenes' choice of threads (quasi_static.cc).
 constexpr std::size_t kMinParallelAssemblyVertices = 6000;
 // Where a linear solve stops at the latest: this fraction of the residual
 // tolerance (absolute, in force), see solve().

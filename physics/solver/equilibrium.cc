@@ -38,6 +38,18 @@ constexpr int kMaxAttempts = 10;
 // accurate (forcing term at most kHardStateForcing), see solve().
 constexpr int kSlowNewtonIterations = 2;
 constexpr double kHardStateForcing = 1e-2;
+// Below this many vertices the tangent is assembled on one thread whatever
+// the team: the assembly meets a barrier per tet colour (elastic::
+// TangentAssembler), and on the curve (2967 vertices, 2 threads)
+// those were 80k of the run's 155k voluntary context switches (74.5k with the
+// assembly on one thread; CPU 26.7 -> 22.4 s), each a wake-up of tens of
+// microseconds on a VM, against the ~5 ms per Newton iteration that a second
+// thread takes off the assembly. The crossover is not measured; 6000 is the
+// scenes' choice of threads (quasi_static.cc).
+constexpr std::size_t kMinParallelAssemblyVertices = 6000;
+// Where a linear solve stops at the latest: this fraction of the residual
+// tolerance (absolute, in force), see solve().
+constexpr double kFinalLinearTolerance = 0.5;
 
 std::string format_double(double value) {
   std::ostringstream out;
@@ -59,7 +71,7 @@ EquilibriumSolver::EquilibriumSolver(const elastic::ElasticBody& body,
       options_(options),
       tangent_(body),
       preconditioning_(std::make_unique<Preconditioning>()) {
-  tangent_.set_threads(options_.threads);
+  tangent_.set_threads(body.num_vertices < kMinParallelAssemblyVertices ? 1 : options_.threads);
   build_rigid_modes(reference_positions_.data());
   // Slots of the diagonal 3x3 blocks in K's values: column 3v+j holds the
   // rows of v's neighbours (v among them) in sorted order.
@@ -325,8 +337,13 @@ EquilibriumReport EquilibriumSolver::solve(const contact::Obstacles& obstacles,
     // 1e-3 from the third iteration on (0.68 from the sixth or ninth); the
     // issue's 40-point curve takes 8.7 s with 1e-2, 11.3 s with 1e-3.
     if (iteration >= kSlowNewtonIterations) forcing = std::min(forcing, kHardStateForcing);
-    // No point in solving the linear system beyond a tenth of the target.
-    const double absolute_tolerance = 0.1 * options_.residual_tolerance * scale;
+    // No point in solving the linear system beyond half the target: near the
+    // solution the step leaves ||f|| at about the CG residual plus C ||f||^2
+    // (C ~ 60, tests/solver), far below the target once ||f|| < 1e-4. Measured
+    // on the curve (2967 vertices, 40 points to 0.8, 1 thread):
+    // 318 -> 324 Newton and 20362 -> 17672 CG iterations against a tenth
+    // (a third: 318 and 18425), F(0.8) the same to 3e-8.
+    const double absolute_tolerance = kFinalLinearTolerance * options_.residual_tolerance * scale;
 
     bool accepted = false;
     std::int64_t inverted_in_search = -1;

@@ -24,8 +24,10 @@ inline constexpr int kMaxSphereVertexCount = 20000;
 // Grading towards the poles (0, 0, +-R), where the contact scenes' plates and
 // probe touch the cell: the surface edge length is pole_spacing_m at the
 // poles and grows by `growth` times the arc distance from the nearer pole up
-// to the uniform mesh's spacing h (graded_sphere_surface.h); TetGen's quality
-// refinement grades the interior from it. target_vertex_count then sets the
+// to the uniform mesh's spacing h (graded_sphere_surface.h); the interior
+// follows the same sizing of the distance from the nearer pole (TetGen
+// refines every tet whose circumradius exceeds 0.9 times it at the
+// circumcentre). target_vertex_count then sets the
 // bulk (h and the interior volume bound of the uniform mesh of that count),
 // and the grading adds vertices near the poles (about 2 pi / (0.87 growth^2)
 // ln(h / pole_spacing_m) on the surface of each pole).

@@ -17,15 +17,19 @@
 namespace cellflow::scenes {
 
 // Largest |F / F_ref - 1| and largest step ratio the coarse setting (1000
-// vertices, 10 points, default numerics) may reach. Measured 2026-12-02:
-// small probe 3.84 % (at 0.6 um), step ratio 1.052, 3323 vertices after the
-// grading; colloidal probe 2.89 % (at 8 um), 1.039, 2176 vertices. The
-// bounds leave 0.6-0.7 % for round-off of TetGen and the Newton path.
+// vertices, 10 points, default numerics) may reach. Measured 2026-12-02
+// with the interior sized at the tets' circumcentres: small probe 3.69 % (at
+// 0.6 um), step ratio 1.058, 3466 vertices after the grading; colloidal
+// probe 2.79 % (at 8 um), 1.036, 2203 vertices (with TetGen's -m on a
+// background mesh before: 3.84 % / 1.052 / 3323 and 2.89 % / 1.039 / 2176).
+// The bounds leave 0.7-0.8 % for round-off of TetGen and the Newton path.
 inline constexpr double kSmallProbeCoarseError = 0.045;
 inline constexpr double kColloidalProbeCoarseError = 0.035;
 inline constexpr double kCoarseStepRatio = 1.08;
 // Largest step between consecutive load points against the reference's step
-// at the default setting (measured 1.074 colloidal, 1.089 small probe).
+// at the default setting (measured 1.075 colloidal, 1.088 small probe; the
+// contact rings entering one by one, validation/fe/README.md). A regression
+// guard, not the target of 1.
 inline constexpr double kDefaultStepRatio = 1.10;
 
 // The validation/fe cases (compare_cellflow.py CASES), nu = 0.48, w = 1.

@@ -46,6 +46,31 @@ def reference(name, column):
     return at
 
 
+def smooth_reference(name, column, first, end, degree=3):
+    """ln F of the reference as a least-squares polynomial of ln x over
+    [first/2, end]: the reference without the steps of its own node-to-surface
+    contact (its local exponent d ln F / d ln x wiggles by about +-0.05 from
+    row to row), for the step ratio against a smooth curve."""
+    import math
+    with open(os.path.join(HERE, "curves", name + ".csv")) as f:
+        rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
+    pts = [(math.log(x), math.log(y)) for x, y in rows if 0.5 * first <= x <= end * (1 + 1e-9) and y > 0]
+    n = degree + 1
+    # normal equations A c = b, A_jk = sum u^(j+k), b_j = sum u^j v
+    a = [[sum(u ** (j + k) for u, _ in pts) for k in range(n)] for j in range(n)]
+    b = [sum(u ** j * v for u, v in pts) for j in range(n)]
+    for i in range(n):  # Gauss-Jordan with partial pivoting
+        p = max(range(i, n), key=lambda r: abs(a[r][i]))
+        a[i], a[p], b[i], b[p] = a[p], a[i], b[p], b[i]
+        for r in range(n):
+            if r != i:
+                f = a[r][i] / a[i][i]
+                a[r] = [x - f * y for x, y in zip(a[r], a[i])]
+                b[r] -= f * b[i]
+    c = [b[i] / a[i][i] for i in range(n)]
+    return lambda x: math.exp(sum(ci * math.log(x) ** i for i, ci in enumerate(c)))
+
+
 def cell(radius, modulus, w):
     return {"radiusM": radius, "material": {"youngsModulusPa": modulus, "poissonRatio": 0.48,
                                             "mooneyRivlinW": w}}
@@ -112,13 +137,22 @@ def main():
         # Raggedness: each step of the force against the reference's step
         # over the same interval (1: the same step; > 1: a jump).
         steps = [(f1 - f0) / (r1 - r0) for (f0, r0), (f1, r1) in zip(points, points[1:])]
+        smooth = smooth_reference(name, ref_col, first, end)
+        smooth_steps = [(f1 - f0) / (smooth(x1) - smooth(x0))
+                        for (x0, _, _), (x1, _, _), (f0, _), (f1, _) in zip(errors, errors[1:], points, points[1:])]
+        ref_steps = [(r1 - r0) / (smooth(x1) - smooth(x0))
+                     for (x0, _, _), (x1, _, _), (_, r0), (_, r1) in zip(errors, errors[1:], points, points[1:])]
         monotone = all(s > 0 for s in steps)
+        # Where the largest step ends (the x of its second point).
+        step_at = errors[1 + steps.index(max(steps))][0] if steps else 0.0
         last = errors[-1][0]
         status = (f"reached {end * scale:g}{unit}" if last > end * (1 - 1e-3)
                   else f"stopped at {last * scale:.3f}{unit}: {run.stderr.strip()}")
         print(f"{name}: largest |error| {100 * abs(worst[1]):.2f} % at {worst[0] * scale:.3f}{unit}; "
               f"{status}; {'monotone' if monotone else 'NOT monotone'}, largest step / reference step "
-              f"{max(steps, default=0):.3f}; {seconds:.1f} s wall, {cpu:.1f} s CPU; max penetration {max(e[2] for e in errors):.2e} m")
+              f"{max(steps, default=0):.3f} (to {step_at * scale:.3g}{unit}), against the smoothed reference "
+              f"{max(smooth_steps, default=0):.3f} (the reference's own steps against it "
+              f"{min(ref_steps, default=0):.3f}-{max(ref_steps, default=0):.3f}); {seconds:.1f} s wall, {cpu:.1f} s CPU; max penetration {max(e[2] for e in errors):.2e} m")
         print("   " + "  ".join(f"{d * scale:.3g}: {100 * e:+.2f} %"
                                 for i, (d, e, _) in enumerate(errors)
                                 if i % 4 == 0 or i < 4 or i == len(errors) - 1))

@@ -17,24 +17,6 @@
 namespace cellflow::jobs {
 namespace {
 
-// FNV-1a 64 of the spec's deterministic serialisation: the identity a
-// checkpoint carries, so that a checkpoint of another spec is refused.
-std::uint64_t spec_hash(const v1::JobSpec& spec) {
-  std::string bytes;
-  {
-    google::protobuf::io::StringOutputStream stream(&bytes);
-    google::protobuf::io::CodedOutputStream coded(&stream);
-    coded.SetSerializationDeterministic(true);
-    spec.SerializeToCodedStream(&coded);
-  }
-  std::uint64_t hash = 0xcbf29ce484222325ULL;
-  for (unsigned char c : bytes) {
-    hash ^= c;
-    hash *= 0x100000001b3ULL;
-  }
-  return hash;
-}
-
 // Writes one shear-flow run: the mesh connectivity once, the cell positions
 // at each snapshot, every deformation sample as time series, the fluid
 // velocity snapshots when the spec asks for them, the resolved setup up front
@@ -209,7 +191,7 @@ class ShearFlowJob final : public PreparedJob {
     recorder.write_setup();
     if (events.progress) events.progress(0.0, "meshing");
     scenes::ShearFlowCallbacks callbacks = recorder.callbacks();
-    add_checkpointing(callbacks, spec, options, events);
+    add_flow_checkpointing(callbacks.checkpointing, spec, options, events);
     const scenes::ShearFlowResult result = scenes::run_shear_flow(planned, callbacks);
     const Status written = recorder.finish(result);
     outcome = outcome_of(result.status, written, recorder.samples());
@@ -218,30 +200,6 @@ class ShearFlowJob final : public PreparedJob {
     if (outcome.status.ok() && events.progress)
       events.progress(1.0, std::string(scenes::stop_name(result.stop)));
     return outcome;
-  }
-
-  // Checkpoints every options.checkpoint_interval_s of wall time; resume from options.resume_path.
-  static void add_checkpointing(scenes::ShearFlowCallbacks& callbacks, const v1::JobSpec& spec,
-                                const RunOptions& options, const JobEvents& events) {
-    scenes::ShearFlowCheckpointing& ck = callbacks.checkpointing;
-    ck.spec_hash = spec_hash(spec);
-    ck.resume_path = options.resume_path;
-    if (options.checkpoint_interval_s > 0.0 && !options.checkpoint_path.empty()) {
-      using Clock = std::chrono::steady_clock;
-      const auto interval = std::chrono::duration<double>(options.checkpoint_interval_s);
-      ck.write_path = options.checkpoint_path;
-      ck.due = [interval, last = Clock::now()]() mutable {
-        if (Clock::now() - last < interval) return false;
-        last = Clock::now();
-        return true;
-      };
-      if (events.checkpoint_before_stop) ck.checkpoint_before_stop = events.checkpoint_before_stop;
-      ck.on_written = [&events](const scenes::ShearFlowCheckpointWritten& w) {
-        if (events.checkpoint_written)
-          events.checkpoint_written({w.path, w.time_step, w.last_sample_index, w.bytes, w.seconds,
-                                     w.status.ok() ? std::string() : w.status.to_string()});
-      };
-    }
   }
 
   Status run_csv(const CsvSink& sink, int threads) override {
@@ -283,6 +241,47 @@ class ShearFlowJob final : public PreparedJob {
 };
 
 }  // namespace
+
+// FNV-1a 64 of the spec's deterministic serialisation: the identity a
+// checkpoint carries, so that a checkpoint of another spec is refused.
+std::uint64_t checkpoint_spec_hash(const v1::JobSpec& spec) {
+  std::string bytes;
+  {
+    google::protobuf::io::StringOutputStream stream(&bytes);
+    google::protobuf::io::CodedOutputStream coded(&stream);
+    coded.SetSerializationDeterministic(true);
+    spec.SerializeToCodedStream(&coded);
+  }
+  std::uint64_t hash = 0xcbf29ce484222325ULL;
+  for (unsigned char c : bytes) {
+    hash ^= c;
+    hash *= 0x100000001b3ULL;
+  }
+  return hash;
+}
+
+// Checkpoints every options.checkpoint_interval_s of wall time; resume from options.resume_path.
+void add_flow_checkpointing(scenes::ShearFlowCheckpointing& ck, const v1::JobSpec& spec,
+                            const RunOptions& options, const JobEvents& events) {
+  ck.spec_hash = checkpoint_spec_hash(spec);
+  ck.resume_path = options.resume_path;
+  if (options.checkpoint_interval_s > 0.0 && !options.checkpoint_path.empty()) {
+    using Clock = std::chrono::steady_clock;
+    const auto interval = std::chrono::duration<double>(options.checkpoint_interval_s);
+    ck.write_path = options.checkpoint_path;
+    ck.due = [interval, last = Clock::now()]() mutable {
+      if (Clock::now() - last < interval) return false;
+      last = Clock::now();
+      return true;
+    };
+    if (events.checkpoint_before_stop) ck.checkpoint_before_stop = events.checkpoint_before_stop;
+    ck.on_written = [&events](const scenes::ShearFlowCheckpointWritten& w) {
+      if (events.checkpoint_written)
+        events.checkpoint_written({w.path, w.time_step, w.last_sample_index, w.bytes, w.seconds,
+                                   w.status.ok() ? std::string() : w.status.to_string()});
+    };
+  }
+}
 
 Status append_fluid_velocity(io::H5mdWriter& writer, const scenes::FluidVelocitySnapshot& snap,
                              std::int64_t step) {

@@ -246,7 +246,8 @@ class SuspensionJob final : public PreparedJob {
   // frame and combined connectivity (every cell's positions, 3 doubles per
   // vertex, and its tetrahedra, about 5 per vertex of 4 int32 each), and the
   // largest transient per-node buffer in double (a fluid velocity snapshot,
-  // 3 values).
+  // 3 values), and the snapshot positions a checkpointed run keeps (every
+  // cell's positions per frame, up to a fixed budget).
   std::int64_t memory_bytes() const override {
     const scenes::SuspensionSetup& setup = planned_.setup();
     const double nodes = static_cast<double>(setup.flow.nx) * setup.flow.ny * setup.flow.nz;
@@ -255,7 +256,13 @@ class SuspensionJob final : public PreparedJob {
       vertices += static_cast<double>(
           cell_vertex_bound(planned_.params().kinds[static_cast<std::size_t>(kind)].cell));
     const double recorder = vertices * (3.0 * 8.0 + 5.0 * 4.0 * 4.0);
-    const double bytes = static_cast<double>(setup.memory_bytes) + nodes * 3.0 * 8.0 + recorder;
+    const auto& flow = planned_.params().numerics.flow;
+    const double frames =
+        flow.snapshot_every_strain > 0.0 ? flow.max_strain / flow.snapshot_every_strain + 2.0 : 0.0;
+    const double kept_snapshots =
+        std::min(frames * vertices * 3.0 * 8.0, static_cast<double>(scenes::kMaxCheckpointSnapshotBytes));
+    const double bytes =
+        static_cast<double>(setup.memory_bytes) + nodes * 3.0 * 8.0 + recorder + kept_snapshots;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18));
   }
 
@@ -279,9 +286,13 @@ class SuspensionJob final : public PreparedJob {
     SuspensionRecorder recorder(writer->get(), planned, events);
     recorder.write_setup();
     if (events.progress) events.progress(0.0, "meshing and placing");
-    const scenes::SuspensionResult result = scenes::run_suspension(planned, recorder.callbacks());
+    scenes::SuspensionCallbacks callbacks = recorder.callbacks();
+    add_flow_checkpointing(callbacks.checkpointing, spec, options, events);
+    const scenes::SuspensionResult result = scenes::run_suspension(planned, callbacks);
     const Status written = recorder.finish(result);
     outcome = outcome_of(result.status, written, recorder.samples());
+    outcome.resumed_from_step = result.resumed_from_step;
+    outcome.resume_refused = result.resume_refused;
     if (outcome.status.ok() && events.progress)
       events.progress(1.0, std::string(scenes::stop_name(result.stop)));
     return outcome;

@@ -12,6 +12,7 @@
 
 #include "io/h5md.h"
 #include "jobs/common/result_file.h"
+#include "jobs/shear_flow/flow_recorder.h"
 #include "jobs/shear_flow/shear_flow_spec.h"
 
 namespace cellflow::jobs {
@@ -22,11 +23,11 @@ namespace {
 // velocity snapshots when the spec asks for them, the resolved setup up front
 // and the steady values at the end. Time is physical (s); the H5MD step is
 // the lattice time step.
-class FlowRecorder : public ResultRecorder {
+class FlowRecorder : public FlowRecorderBase {
  public:
   FlowRecorder(io::H5mdWriter* writer, const scenes::ShearFlowSetup& setup, double max_strain,
                const JobEvents& events)
-      : ResultRecorder(writer), setup_(setup), max_strain_(max_strain), events_(events) {}
+      : FlowRecorderBase(writer, setup, max_strain, events) {}
 
   scenes::ShearFlowCallbacks callbacks() {
     scenes::ShearFlowCallbacks cb;
@@ -36,18 +37,7 @@ class FlowRecorder : public ResultRecorder {
       keep(writer_->flush());
     };
     cb.on_sample = [this](const scenes::ShearFlowSample& sample) { on_sample(sample); };
-    cb.on_fluid_velocity = [this](const scenes::FluidVelocitySnapshot& snap) {
-      keep(append_fluid_velocity(*writer_, snap, step_of(snap.time_s)));
-      keep(writer_->flush());
-    };
-    cb.on_progress = [this](double fraction) {
-      if (events_.progress) {
-        char stage[64];
-        std::snprintf(stage, sizeof stage, "strain %.2f/%.4g", last_strain_, max_strain_);
-        events_.progress(fraction, stage);
-      }
-    };
-    cb.should_stop = [this] { return events_.should_stop && events_.should_stop(); };
+    add_flow_callbacks(cb);
     return cb;
   }
 
@@ -62,8 +52,7 @@ class FlowRecorder : public ResultRecorder {
     auto put = [&](const char* name, double value, const char* unit) {
       keep(writer_->write_scalar(std::string("/summary/") + name, value, unit));
     };
-    keep(writer_->write_string("/summary/stop", scenes::stop_name(result.stop)));
-    if (!result.status.ok()) keep(writer_->write_string("/summary/status", result.status.to_string()));
+    write_stop(result.stop, result.status);
     if (!result.samples.empty()) {
       put("steady_taylor_deformation", result.steady_taylor_deformation, "");
       put("steady_inclination_rad", result.steady_inclination_deg * std::numbers::pi / 180.0, "rad");
@@ -81,30 +70,13 @@ class FlowRecorder : public ResultRecorder {
       keep(writer_->write_integer("/summary/marked_nodes", result.marked_nodes));
       put("wall_time_s", result.wall_time_s, "s");
     }
-    std::string warnings;
-    for (const std::string& w : result.warnings) warnings += (warnings.empty() ? "" : "\n") + w;
-    if (!warnings.empty()) keep(writer_->write_string("/summary/warnings", warnings));
-    keep(writer_->close());
-    return status_;
+    return close_with_warnings(result.warnings);
   }
-
-  int samples() const { return samples_; }
 
  private:
-  std::int64_t step_of(double time_s) const {
-    return setup_.time_step_s > 0.0 ? std::llround(time_s / setup_.time_step_s) : 0;
-  }
-
   void on_mesh(const mesh::TetMesh& mesh) {
     write_connectivity(mesh);
-    // The flow box: periodic in x (the flow direction) and z, walls at y = 0
-    // and y = H (paper section 7.1); edges n dx per axis (setup.box_m).
-    io::H5mdBox box;
-    box.periodic[0] = box.periodic[2] = true;
-    box.has_edges = true;
-    for (int d = 0; d < 3; ++d) box.edges_m[d] = setup_.box_m[d];
-    keep(writer_->set_box("cell", box));
-    keep(writer_->flush());
+    write_flow_box();
   }
 
   void on_sample(const scenes::ShearFlowSample& s) {
@@ -124,16 +96,9 @@ class FlowRecorder : public ResultRecorder {
     put("volume_m3", s.volume_m3, "m+3");
     put("elastic_energy_j", s.elastic_energy_j, "J");
     keep(writer_->flush());  // a killed job leaves every reported sample readable
-    ++samples_;
-    last_strain_ = s.strain_units;
+    sample_written(s.strain_units);
     if (events_.deformation_sample) events_.deformation_sample(deformation_sample_from(s));
   }
-
-  scenes::ShearFlowSetup setup_;
-  double max_strain_;
-  const JobEvents& events_;
-  double last_strain_ = 0.0;
-  int samples_ = 0;
 };
 
 // One converted shear-flow job: its parameters and the lattice plan derived
@@ -154,18 +119,11 @@ class ShearFlowJob final : public PreparedJob {
   // budget), and the cell mesh at the quasi-static rate per vertex.
   std::int64_t memory_bytes() const override {
     const scenes::ShearFlowSetup& setup = planned_.setup();
-    const double nodes = static_cast<double>(setup.nx) * setup.ny * setup.nz;
-    const double transient_values = 3.0;
     // A checkpointed run keeps the snapshot positions, up to a fixed budget.
-    const auto& numerics = planned_.params().numerics;
-    const double frames = numerics.snapshot_every_strain > 0.0
-                              ? numerics.max_strain / numerics.snapshot_every_strain + 2.0
-                              : 0.0;
-    const double kept_snapshots =
-        std::min(frames * static_cast<double>(cell_vertex_bound(planned_.params().cell)) * 3.0 * 8.0,
-                 static_cast<double>(scenes::kMaxCheckpointSnapshotBytes));
+    const double kept_snapshots = kept_snapshot_bytes(
+        planned_.params().numerics, static_cast<double>(cell_vertex_bound(planned_.params().cell)));
     const double bytes =
-        static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0 + kept_snapshots;
+        static_cast<double>(setup.lattice_bytes) + flow_transient_bytes(setup) + kept_snapshots;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18)) +
            cell_vertex_bound(planned_.params().cell) * kBytesPerVertex;
   }

@@ -201,6 +201,49 @@ TEST_F(SuspensionCheckpoint, ResumedRunWithViscosityContrastIsBitIdentical) {
   expect_resume_is_bit_identical(0.05, {4});
 }
 
+// A stop that keeps the work (a worker handing its job back) goes on to the
+// next checkpoint step (with a contrast: a sample step that is a marking
+// step), checkpoints there and stops; the resumed run is bit-identical. A
+// cancel (checkpoint_before_stop false) stops at once.
+TEST_F(SuspensionCheckpoint, StopThatKeepsTheWorkCheckpointsAtTheNextCheckpointStep) {
+  const SuspensionParams p = tiny_suspension(0.05);
+  const Outcome fresh = run(p, 0, "");
+  ASSERT_TRUE(fresh.result.status.ok()) << fresh.result.status.to_string();
+  const std::int64_t every = fresh.result.samples[1].time_step;
+  // Odd: sample 3 is no marking step (marking every 2 steps), sample 4 is.
+  ASSERT_EQ(every % 2, 1);
+  ASSERT_EQ(p.numerics.marking_every_steps, 2);
+  for (const bool keep : {true, false}) {
+    SCOPED_TRACE(keep ? "keep the work" : "cancel");
+    StatusOr<PlannedSuspension> planned = plan_suspension_run(p);
+    ASSERT_TRUE(planned.ok());
+    int samples = 0;
+    std::vector<ShearFlowCheckpointWritten> written;
+    SuspensionCallbacks cb;
+    cb.on_sample = [&](const SuspensionSample&) { ++samples; };
+    cb.should_stop = [&] { return samples >= 4; };  // from the poll after sample 3 on
+    cb.checkpointing.spec_hash = kSpecHash;
+    cb.checkpointing.write_path = path_;
+    cb.checkpointing.due = [] { return false; };  // no periodic checkpoints
+    cb.checkpointing.checkpoint_before_stop = [keep] { return keep; };
+    cb.checkpointing.on_written = [&](const ShearFlowCheckpointWritten& w) { written.push_back(w); };
+    const SuspensionResult stopped = run_suspension(*planned, cb);
+    EXPECT_EQ(stopped.stop, ShearFlowStop::kCancelled);
+    if (!keep) {
+      EXPECT_EQ(stopped.time_steps, 3 * every);
+      EXPECT_TRUE(written.empty());
+      continue;
+    }
+    EXPECT_EQ(stopped.time_steps, 4 * every);
+    ASSERT_EQ(written.size(), 1u);
+    ASSERT_TRUE(written[0].status.ok()) << written[0].status.to_string();
+    EXPECT_EQ(written[0].time_step, 4 * every);
+    const Outcome resumed = run(p, 0, "", path_);
+    EXPECT_EQ(resumed.result.resumed_from_step, 4 * every);
+    expect_same_samples(fresh.result, resumed.result);
+  }
+}
+
 // Writes a checkpoint of tiny_suspension(1) after its 4th checkpoint poll into `path`.
 void make_checkpoint(const std::string& path) {
   const Outcome writer = run(tiny_suspension(1.0), 4, path);

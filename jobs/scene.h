@@ -61,7 +61,7 @@ struct RunOptions {
   // fit: the curve library's cache directory; empty: jobs::default_library_dir()
   // ($CELLFLOW_LIBRARY_DIR, $XDG_CACHE_HOME/cellflow/curves, ~/.cache/cellflow/curves).
   std::string library_dir;
-  // Checkpoint and restart (flow jobs; other scenes ignore these).
+  // Checkpoint and restart (flow jobs: the single cell and the suspension; other scenes ignore these).
   // checkpoint_interval_s > 0 and checkpoint_path set: a checkpoint at the
   // first sample step after each interval of wall time (from the start).
   double checkpoint_interval_s = 0.0;

@@ -1,6 +1,7 @@
-// cellflow-run SPEC.json [-o curve.csv | -r result.h5] [--quiet] [--threads N]: runs a job
-// spec locally and writes its force-deformation curve (quasi-static) or its
-// deformation time series (shear flow) as CSV.
+// cellflow-run SPEC.json [-o curve.csv | -r result.h5 [--checkpoint FILE] [--checkpoint-every-s S]
+// [--resume FILE]] [--quiet] [--threads N]: runs a job spec locally and writes its
+// force-deformation curve (quasi-static) or its deformation time series (shear flow,
+// suspension) as CSV, or the result file; flow jobs run to a result file checkpoint and resume.
 #include <CLI/CLI.hpp>
 #include <fstream>
 #include <iostream>
@@ -27,6 +28,19 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", quiet, "no progress lines on stderr");
   app.add_option("-j,--threads", threads, "OpenMP threads of the solve (default: the OpenMP default)")
       ->check(CLI::NonNegativeNumber);
+  cellflow::tools::CheckpointOptions checkpoints;
+  app.add_option("--checkpoint", checkpoints.checkpoint_path,
+                 "flow jobs with --result: write a checkpoint to FILE at the first sample after each "
+                 "--checkpoint-every-s of wall time")
+      ->needs("--result");
+  app.add_option("--checkpoint-every-s", checkpoints.checkpoint_interval_s,
+                 "wall time between checkpoints (default 300; > 0)")
+      ->needs("--checkpoint")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--resume", checkpoints.resume_path,
+                 "flow jobs with --result: resume from this checkpoint of the same spec (a refused one: "
+                 "from the start)")
+      ->needs("--result");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -35,7 +49,7 @@ int main(int argc, char** argv) {
   }
   if (!result_path.empty()) {
     const cellflow::tools::RunOutcome outcome = cellflow::tools::run_spec_file_to_result(
-        spec_path, result_path, quiet ? nullptr : &std::cerr, threads);
+        spec_path, result_path, quiet ? nullptr : &std::cerr, threads, checkpoints);
     if (!outcome.status.ok()) std::cerr << "cellflow-run: " << outcome.status.to_string() << '\n';
     return outcome.exit_code;
   }

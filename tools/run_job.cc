@@ -62,9 +62,14 @@ RunOutcome run_spec_file(const std::string& spec_path, std::ostream& csv, std::o
 }
 
 RunOutcome run_spec_file_to_result(const std::string& spec_path, const std::string& h5_path,
-                                   std::ostream* progress, int threads) {
+                                   std::ostream* progress, int threads,
+                                   const CheckpointOptions& checkpoints) {
   if (threads < 0)
     return outcome_for(invalid_argument("--threads = " + std::to_string(threads) + " must be >= 0"));
+  if (!checkpoints.checkpoint_path.empty() && !(checkpoints.checkpoint_interval_s > 0.0)) {
+    return outcome_for(invalid_argument(
+        "--checkpoint-every-s = " + std::to_string(checkpoints.checkpoint_interval_s) + " must be > 0"));
+  }
   StatusOr<v1::JobSpec> spec = read_spec_file(spec_path);
   if (!spec.ok()) return outcome_for(spec.status());
   const jobs::SceneRegistry registry;
@@ -74,13 +79,31 @@ RunOutcome run_spec_file_to_result(const std::string& spec_path, const std::stri
   options.result_path = h5_path;
   options.threads = threads;
   options.default_author = login_name();
+  if (!checkpoints.checkpoint_path.empty()) {
+    options.checkpoint_path = checkpoints.checkpoint_path;
+    options.checkpoint_interval_s = checkpoints.checkpoint_interval_s;
+  }
+  options.resume_path = checkpoints.resume_path;
   jobs::JobEvents events;
   if (progress != nullptr) {
     events.progress = [progress](double fraction, const std::string& stage) {
       *progress << "progress " << static_cast<int>(100.0 * fraction) << " % " << stage << '\n';
     };
+    events.checkpoint_written = [progress](const jobs::CheckpointWritten& w) {
+      if (!w.error.empty()) {
+        *progress << "checkpoint after step " << w.time_step << " not written: " << w.error << '\n';
+        return;
+      }
+      *progress << "checkpoint after step " << w.time_step << " (sample " << w.last_sample_index
+                << "): " << w.bytes << " bytes in " << w.seconds << " s to " << w.path << '\n';
+    };
   }
   const jobs::RunOutcome outcome = (*prepared)->run(*spec, options, events);
+  if (progress != nullptr) {
+    if (outcome.resumed_from_step >= 0)
+      *progress << "resumed after step " << outcome.resumed_from_step << '\n';
+    if (!outcome.resume_refused.empty()) *progress << outcome.resume_refused << "; ran from the start\n";
+  }
   if (!outcome.result_written) return outcome_for(outcome.status);
   const std::string xdmf = std::filesystem::path(h5_path).replace_extension(".xdmf").string();
   if (Status s = io::write_xdmf(h5_path, xdmf); !s.ok() && s.code() != StatusCode::kNotFound) {

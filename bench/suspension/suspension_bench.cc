@@ -1,8 +1,13 @@
 // Suspension benchmarks (issue 15, performance):
-//   suspension_bench step  [cells=8 cpr=6 vertices=1000 strain=0.3 ca=0.2 threads=1 lambda=1 marking_every=1]
+//   suspension_bench step  [cells=8 cpr=6 vertices=1000 strain=0.3 ca=0.2 threads=1 lambda=1 marking_every=1
+//                           checkpoint=PATH checkpoint_every_s=300 resume=PATH]
 //     time per step of the 5 x 8 x 4 R box with `cells` cells at the default
 //     resolution, split into LB, elastic forces, interpolation + spreading,
 //     contact search + forces, marking (none at lambda = 1) and observables.
+//     checkpoint=PATH writes a checkpoint at the first checkpoint step after
+//     each checkpoint_every_s of wall time (0: at every one) and prints its
+//     size and its wall and CPU time against the time step; resume=PATH
+//     resumes from one (a run of the same arguments).
 //   suspension_bench contact [max_cells=32 vertices=1000 cpr=6 reps=200 phi=0.22]
 //     CPU time of the contact search (RepulsionSearch::add_forces) against
 //     the number of cells 1..max_cells at a fixed volume fraction (the box
@@ -51,6 +56,12 @@ scenes::SuspensionParams box_params(int cells, double cpr, int vertices, double 
   return p;
 }
 
+double thread_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
 int step_bench(std::map<std::string, std::string>& args) {
   auto get = [&](const char* key, double fallback) { return bench::number_arg(args, key, fallback); };
   const int cells = static_cast<int>(get("cells", 8));
@@ -65,12 +76,43 @@ int step_bench(std::map<std::string, std::string>& args) {
     return 1;
   }
   const scenes::SuspensionSetup& s = planned->setup();
-  const scenes::SuspensionResult r = scenes::run_suspension(*planned);
+  scenes::SuspensionCallbacks cb;
+  int checkpoints = 0;
+  double checkpoint_s = 0.0, checkpoint_cpu_s = 0.0, checkpoint_max_s = 0.0, due_cpu_s = 0.0;
+  std::uint64_t checkpoint_bytes = 0;
+  cb.checkpointing.spec_hash = 1;  // the arguments' run; a checkpoint of other arguments fails on its sizes
+  if (args.count("checkpoint")) {
+    using Clock = std::chrono::steady_clock;
+    const double every_s = get("checkpoint_every_s", 300.0);
+    cb.checkpointing.write_path = args["checkpoint"];
+    // The write follows a due() that says yes at once: the thread's CPU time between the two is the write's.
+    cb.checkpointing.due = [every_s, &due_cpu_s, last = Clock::now()]() mutable {
+      if (std::chrono::duration<double>(Clock::now() - last).count() < every_s) return false;
+      last = Clock::now();
+      due_cpu_s = thread_cpu_seconds();
+      return true;
+    };
+    cb.checkpointing.on_written = [&](const scenes::ShearFlowCheckpointWritten& w) {
+      if (!w.status.ok()) {
+        std::printf("checkpoint failed: %s\n", w.status.to_string().c_str());
+        return;
+      }
+      ++checkpoints;
+      checkpoint_s += w.seconds;
+      checkpoint_cpu_s += thread_cpu_seconds() - due_cpu_s;
+      checkpoint_max_s = std::max(checkpoint_max_s, w.seconds);
+      checkpoint_bytes = w.bytes;
+    };
+  }
+  if (args.count("resume")) cb.checkpointing.resume_path = args["resume"];
+  const scenes::SuspensionResult r = scenes::run_suspension(*planned, cb);
   if (!r.status.ok()) {
     std::fprintf(stderr, "%s\n", r.status.to_string().c_str());
     return 1;
   }
-  const double steps = static_cast<double>(std::max<std::int64_t>(r.time_steps, 1));
+  // Only the steps this run took (a resumed one: from its checkpoint on).
+  const double steps = static_cast<double>(
+      std::max<std::int64_t>(r.time_steps - std::max<std::int64_t>(r.resumed_from_step, 0), 1));
   const double ms = 1e3 / steps;
   const double total = r.lattice_s + r.elastic_s + r.coupling_s + r.contact_s + r.marking_s + r.observables_s;
   std::printf("box %dx%dx%d nodes, %d cells (phi %.3f), %lld steps, wall %.1f s\n", s.flow.nx, s.flow.ny,
@@ -87,6 +129,18 @@ int step_bench(std::map<std::string, std::string>& args) {
   std::printf("contact list builds %lld, marking updates %lld, full markings %lld (start: %d)\n",
               static_cast<long long>(r.contact_list_builds), static_cast<long long>(r.marking_updates),
               static_cast<long long>(r.marking_full), s.cell_count);
+  if (r.resumed_from_step >= 0)
+    std::printf("resumed after step %lld\n", static_cast<long long>(r.resumed_from_step));
+  if (!r.resume_refused.empty()) std::printf("resume refused: %s\n", r.resume_refused.c_str());
+  if (checkpoints > 0) {
+    const double step_s = total / steps;
+    std::printf(
+        "checkpoints %d of %.2f MB: mean %.4f s wall (max %.4f s), %.4f s CPU each = %.1f time steps of "
+        "%.2f ms; %.2f %% of the run's wall time\n",
+        checkpoints, static_cast<double>(checkpoint_bytes) / 1e6, checkpoint_s / checkpoints,
+        checkpoint_max_s, checkpoint_cpu_s / checkpoints, checkpoint_s / checkpoints / step_s, 1e3 * step_s,
+        100.0 * checkpoint_s / r.wall_time_s);
+  }
   std::printf("CPU time of the process / wall time: see `time`; the split is of wall time\n");
   return 0;
 }

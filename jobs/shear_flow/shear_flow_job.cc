@@ -12,39 +12,22 @@
 
 #include "io/h5md.h"
 #include "jobs/common/result_file.h"
+#include "jobs/shear_flow/flow_recorder.h"
 #include "jobs/shear_flow/shear_flow_spec.h"
 
 namespace cellflow::jobs {
 namespace {
-
-// FNV-1a 64 of the spec's deterministic serialisation: the identity a
-// checkpoint carries, so that a checkpoint of another spec is refused.
-std::uint64_t spec_hash(const v1::JobSpec& spec) {
-  std::string bytes;
-  {
-    google::protobuf::io::StringOutputStream stream(&bytes);
-    google::protobuf::io::CodedOutputStream coded(&stream);
-    coded.SetSerializationDeterministic(true);
-    spec.SerializeToCodedStream(&coded);
-  }
-  std::uint64_t hash = 0xcbf29ce484222325ULL;
-  for (unsigned char c : bytes) {
-    hash ^= c;
-    hash *= 0x100000001b3ULL;
-  }
-  return hash;
-}
 
 // Writes one shear-flow run: the mesh connectivity once, the cell positions
 // at each snapshot, every deformation sample as time series, the fluid
 // velocity snapshots when the spec asks for them, the resolved setup up front
 // and the steady values at the end. Time is physical (s); the H5MD step is
 // the lattice time step.
-class FlowRecorder : public ResultRecorder {
+class FlowRecorder : public FlowRecorderBase {
  public:
   FlowRecorder(io::H5mdWriter* writer, const scenes::ShearFlowSetup& setup, double max_strain,
                const JobEvents& events)
-      : ResultRecorder(writer), setup_(setup), max_strain_(max_strain), events_(events) {}
+      : FlowRecorderBase(writer, setup, max_strain, events) {}
 
   scenes::ShearFlowCallbacks callbacks() {
     scenes::ShearFlowCallbacks cb;
@@ -54,18 +37,7 @@ class FlowRecorder : public ResultRecorder {
       keep(writer_->flush());
     };
     cb.on_sample = [this](const scenes::ShearFlowSample& sample) { on_sample(sample); };
-    cb.on_fluid_velocity = [this](const scenes::FluidVelocitySnapshot& snap) {
-      keep(append_fluid_velocity(*writer_, snap, step_of(snap.time_s)));
-      keep(writer_->flush());
-    };
-    cb.on_progress = [this](double fraction) {
-      if (events_.progress) {
-        char stage[64];
-        std::snprintf(stage, sizeof stage, "strain %.2f/%.4g", last_strain_, max_strain_);
-        events_.progress(fraction, stage);
-      }
-    };
-    cb.should_stop = [this] { return events_.should_stop && events_.should_stop(); };
+    add_flow_callbacks(cb);
     return cb;
   }
 
@@ -80,8 +52,7 @@ class FlowRecorder : public ResultRecorder {
     auto put = [&](const char* name, double value, const char* unit) {
       keep(writer_->write_scalar(std::string("/summary/") + name, value, unit));
     };
-    keep(writer_->write_string("/summary/stop", scenes::stop_name(result.stop)));
-    if (!result.status.ok()) keep(writer_->write_string("/summary/status", result.status.to_string()));
+    write_stop(result.stop, result.status);
     if (!result.samples.empty()) {
       put("steady_taylor_deformation", result.steady_taylor_deformation, "");
       put("steady_inclination_rad", result.steady_inclination_deg * std::numbers::pi / 180.0, "rad");
@@ -99,30 +70,13 @@ class FlowRecorder : public ResultRecorder {
       keep(writer_->write_integer("/summary/marked_nodes", result.marked_nodes));
       put("wall_time_s", result.wall_time_s, "s");
     }
-    std::string warnings;
-    for (const std::string& w : result.warnings) warnings += (warnings.empty() ? "" : "\n") + w;
-    if (!warnings.empty()) keep(writer_->write_string("/summary/warnings", warnings));
-    keep(writer_->close());
-    return status_;
+    return close_with_warnings(result.warnings);
   }
-
-  int samples() const { return samples_; }
 
  private:
-  std::int64_t step_of(double time_s) const {
-    return setup_.time_step_s > 0.0 ? std::llround(time_s / setup_.time_step_s) : 0;
-  }
-
   void on_mesh(const mesh::TetMesh& mesh) {
     write_connectivity(mesh);
-    // The flow box: periodic in x (the flow direction) and z, walls at y = 0
-    // and y = H (paper section 7.1); edges n dx per axis (setup.box_m).
-    io::H5mdBox box;
-    box.periodic[0] = box.periodic[2] = true;
-    box.has_edges = true;
-    for (int d = 0; d < 3; ++d) box.edges_m[d] = setup_.box_m[d];
-    keep(writer_->set_box("cell", box));
-    keep(writer_->flush());
+    write_flow_box();
   }
 
   void on_sample(const scenes::ShearFlowSample& s) {
@@ -142,16 +96,9 @@ class FlowRecorder : public ResultRecorder {
     put("volume_m3", s.volume_m3, "m+3");
     put("elastic_energy_j", s.elastic_energy_j, "J");
     keep(writer_->flush());  // a killed job leaves every reported sample readable
-    ++samples_;
-    last_strain_ = s.strain_units;
+    sample_written(s.strain_units);
     if (events_.deformation_sample) events_.deformation_sample(deformation_sample_from(s));
   }
-
-  scenes::ShearFlowSetup setup_;
-  double max_strain_;
-  const JobEvents& events_;
-  double last_strain_ = 0.0;
-  int samples_ = 0;
 };
 
 // One converted shear-flow job: its parameters and the lattice plan derived
@@ -172,18 +119,11 @@ class ShearFlowJob final : public PreparedJob {
   // budget), and the cell mesh at the quasi-static rate per vertex.
   std::int64_t memory_bytes() const override {
     const scenes::ShearFlowSetup& setup = planned_.setup();
-    const double nodes = static_cast<double>(setup.nx) * setup.ny * setup.nz;
-    const double transient_values = 3.0;
     // A checkpointed run keeps the snapshot positions, up to a fixed budget.
-    const auto& numerics = planned_.params().numerics;
-    const double frames = numerics.snapshot_every_strain > 0.0
-                              ? numerics.max_strain / numerics.snapshot_every_strain + 2.0
-                              : 0.0;
-    const double kept_snapshots =
-        std::min(frames * static_cast<double>(cell_vertex_bound(planned_.params().cell)) * 3.0 * 8.0,
-                 static_cast<double>(scenes::kMaxCheckpointSnapshotBytes));
+    const double kept_snapshots = kept_snapshot_bytes(
+        planned_.params().numerics, static_cast<double>(cell_vertex_bound(planned_.params().cell)));
     const double bytes =
-        static_cast<double>(setup.lattice_bytes) + nodes * transient_values * 8.0 + kept_snapshots;
+        static_cast<double>(setup.lattice_bytes) + flow_transient_bytes(setup) + kept_snapshots;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18)) +
            cell_vertex_bound(planned_.params().cell) * kBytesPerVertex;
   }
@@ -209,7 +149,7 @@ class ShearFlowJob final : public PreparedJob {
     recorder.write_setup();
     if (events.progress) events.progress(0.0, "meshing");
     scenes::ShearFlowCallbacks callbacks = recorder.callbacks();
-    add_checkpointing(callbacks, spec, options, events);
+    add_flow_checkpointing(callbacks.checkpointing, spec, options, events);
     const scenes::ShearFlowResult result = scenes::run_shear_flow(planned, callbacks);
     const Status written = recorder.finish(result);
     outcome = outcome_of(result.status, written, recorder.samples());
@@ -218,30 +158,6 @@ class ShearFlowJob final : public PreparedJob {
     if (outcome.status.ok() && events.progress)
       events.progress(1.0, std::string(scenes::stop_name(result.stop)));
     return outcome;
-  }
-
-  // Checkpoints every options.checkpoint_interval_s of wall time; resume from options.resume_path.
-  static void add_checkpointing(scenes::ShearFlowCallbacks& callbacks, const v1::JobSpec& spec,
-                                const RunOptions& options, const JobEvents& events) {
-    scenes::ShearFlowCheckpointing& ck = callbacks.checkpointing;
-    ck.spec_hash = spec_hash(spec);
-    ck.resume_path = options.resume_path;
-    if (options.checkpoint_interval_s > 0.0 && !options.checkpoint_path.empty()) {
-      using Clock = std::chrono::steady_clock;
-      const auto interval = std::chrono::duration<double>(options.checkpoint_interval_s);
-      ck.write_path = options.checkpoint_path;
-      ck.due = [interval, last = Clock::now()]() mutable {
-        if (Clock::now() - last < interval) return false;
-        last = Clock::now();
-        return true;
-      };
-      if (events.checkpoint_before_stop) ck.checkpoint_before_stop = events.checkpoint_before_stop;
-      ck.on_written = [&events](const scenes::ShearFlowCheckpointWritten& w) {
-        if (events.checkpoint_written)
-          events.checkpoint_written({w.path, w.time_step, w.last_sample_index, w.bytes, w.seconds,
-                                     w.status.ok() ? std::string() : w.status.to_string()});
-      };
-    }
   }
 
   Status run_csv(const CsvSink& sink, int threads) override {
@@ -283,6 +199,47 @@ class ShearFlowJob final : public PreparedJob {
 };
 
 }  // namespace
+
+// FNV-1a 64 of the spec's deterministic serialisation: the identity a
+// checkpoint carries, so that a checkpoint of another spec is refused.
+std::uint64_t checkpoint_spec_hash(const v1::JobSpec& spec) {
+  std::string bytes;
+  {
+    google::protobuf::io::StringOutputStream stream(&bytes);
+    google::protobuf::io::CodedOutputStream coded(&stream);
+    coded.SetSerializationDeterministic(true);
+    spec.SerializeToCodedStream(&coded);
+  }
+  std::uint64_t hash = 0xcbf29ce484222325ULL;
+  for (unsigned char c : bytes) {
+    hash ^= c;
+    hash *= 0x100000001b3ULL;
+  }
+  return hash;
+}
+
+// Checkpoints every options.checkpoint_interval_s of wall time; resume from options.resume_path.
+void add_flow_checkpointing(scenes::ShearFlowCheckpointing& ck, const v1::JobSpec& spec,
+                            const RunOptions& options, const JobEvents& events) {
+  ck.spec_hash = checkpoint_spec_hash(spec);
+  ck.resume_path = options.resume_path;
+  if (options.checkpoint_interval_s > 0.0 && !options.checkpoint_path.empty()) {
+    using Clock = std::chrono::steady_clock;
+    const auto interval = std::chrono::duration<double>(options.checkpoint_interval_s);
+    ck.write_path = options.checkpoint_path;
+    ck.due = [interval, last = Clock::now()]() mutable {
+      if (Clock::now() - last < interval) return false;
+      last = Clock::now();
+      return true;
+    };
+    if (events.checkpoint_before_stop) ck.checkpoint_before_stop = events.checkpoint_before_stop;
+    ck.on_written = [&events](const scenes::ShearFlowCheckpointWritten& w) {
+      if (events.checkpoint_written)
+        events.checkpoint_written({w.path, w.time_step, w.last_sample_index, w.bytes, w.seconds,
+                                   w.status.ok() ? std::string() : w.status.to_string()});
+    };
+  }
+}
 
 Status append_fluid_velocity(io::H5mdWriter& writer, const scenes::FluidVelocitySnapshot& snap,
                              std::int64_t step) {

@@ -30,6 +30,16 @@ Status write_flow_setup(io::H5mdWriter& writer, const scenes::ShearFlowSetup& se
 Status append_fluid_velocity(io::H5mdWriter& writer, const scenes::FluidVelocitySnapshot& snapshot,
                              std::int64_t step);
 
+// Checkpoint and restart of the flow jobs (the single cell and the
+// suspension; their scenes take the same ShearFlowCheckpointing): the spec's
+// hash as the checkpoint's identity, a checkpoint at the first checkpoint
+// step after each options.checkpoint_interval_s of wall time to
+// options.checkpoint_path, resume from options.resume_path, and the events'
+// checkpoint_written / checkpoint_before_stop wired to it.
+std::uint64_t checkpoint_spec_hash(const v1::JobSpec& spec);
+void add_flow_checkpointing(scenes::ShearFlowCheckpointing& checkpointing, const v1::JobSpec& spec,
+                            const RunOptions& options, const JobEvents& events);
+
 // A shear-flow sample as the sample message of the API (inclination in radians).
 v1::DeformationSample deformation_sample_from(const scenes::ShearFlowSample& sample);
 

@@ -9,6 +9,7 @@
 
 #include "io/h5md.h"
 #include "jobs/common/result_file.h"
+#include "jobs/shear_flow/flow_recorder.h"
 #include "jobs/shear_flow/shear_flow_job.h"
 #include "jobs/suspension/suspension_spec.h"
 
@@ -24,11 +25,12 @@ constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 // (each kind's mesh, offset to the cell's vertices), /parameters/setup
 // cell_kind, cell_vertex_offset and cell_tet_offset say which rows are whose.
 // A snapshot frame is written once every cell's positions of it arrived.
-class SuspensionRecorder : public ResultRecorder {
+class SuspensionRecorder : public FlowRecorderBase {
  public:
   SuspensionRecorder(io::H5mdWriter* writer, const scenes::PlannedSuspension& planned,
                      const JobEvents& events)
-      : ResultRecorder(writer), planned_(planned), events_(events) {}
+      : FlowRecorderBase(writer, planned.setup().flow, planned.params().numerics.flow.max_strain, events),
+        planned_(planned) {}
 
   scenes::SuspensionCallbacks callbacks() {
     scenes::SuspensionCallbacks cb;
@@ -37,19 +39,7 @@ class SuspensionRecorder : public ResultRecorder {
       on_positions(index, time_s, cell, x);
     };
     cb.on_sample = [this](const scenes::SuspensionSample& sample) { on_sample(sample); };
-    cb.on_fluid_velocity = [this](const scenes::FluidVelocitySnapshot& snap) {
-      keep(append_fluid_velocity(*writer_, snap, step_of(snap.time_s)));
-      keep(writer_->flush());
-    };
-    cb.on_progress = [this](double fraction) {
-      if (events_.progress) {
-        char stage[64];
-        std::snprintf(stage, sizeof stage, "strain %.2f/%.4g", last_strain_,
-                      planned_.params().numerics.flow.max_strain);
-        events_.progress(fraction, stage);
-      }
-    };
-    cb.should_stop = [this] { return events_.should_stop && events_.should_stop(); };
+    add_flow_callbacks(cb);
     return cb;
   }
 
@@ -73,8 +63,7 @@ class SuspensionRecorder : public ResultRecorder {
       keep(writer_->write_scalar(std::string("/summary/") + name, value, unit));
     };
     if (frame_received_ > 0) keep(incomplete_frame());
-    keep(writer_->write_string("/summary/stop", scenes::stop_name(result.stop)));
-    if (!result.status.ok()) keep(writer_->write_string("/summary/status", result.status.to_string()));
+    write_stop(result.stop, result.status);
     if (!result.samples.empty()) {
       put("average_taylor_deformation", result.average_taylor_deformation, "");
       put("average_taylor_deformation_error", result.average_taylor_deformation_error, "");
@@ -90,21 +79,10 @@ class SuspensionRecorder : public ResultRecorder {
       put("marking_s", result.marking_s, "s");
       put("observables_s", result.observables_s, "s");
     }
-    std::string warnings;
-    for (const std::string& w : result.warnings) warnings += (warnings.empty() ? "" : "\n") + w;
-    if (!warnings.empty()) keep(writer_->write_string("/summary/warnings", warnings));
-    keep(writer_->close());
-    return status_;
+    return close_with_warnings(result.warnings);
   }
-
-  int samples() const { return samples_; }
 
  private:
-  std::int64_t step_of(double time_s) const {
-    const double dt = planned_.setup().flow.time_step_s;
-    return dt > 0.0 ? std::llround(time_s / dt) : 0;
-  }
-
   void on_meshes(std::span<const mesh::TetMesh> meshes) {
     const std::vector<int>& kinds = planned_.cell_kinds();
     std::vector<std::int32_t> tets;
@@ -128,13 +106,7 @@ class SuspensionRecorder : public ResultRecorder {
     keep(writer_->write_tetrahedra("cell", tets, region));
     keep(writer_->write_integers("/parameters/setup/cell_vertex_offset", vertex_offset_));
     keep(writer_->write_integers("/parameters/setup/cell_tet_offset", tet_offset));
-    // The flow box: periodic in x and z, walls at y = 0 and H (setup.box_m).
-    io::H5mdBox box;
-    box.periodic[0] = box.periodic[2] = true;
-    box.has_edges = true;
-    for (int d = 0; d < 3; ++d) box.edges_m[d] = planned_.setup().flow.box_m[d];
-    keep(writer_->set_box("cell", box));
-    keep(writer_->flush());
+    write_flow_box();
     frame_.assign(static_cast<std::size_t>(vertex_offset_.back()) * 3, 0.0);
     frame_has_.assign(kinds.size(), 0);
   }
@@ -218,20 +190,16 @@ class SuspensionRecorder : public ResultRecorder {
       keep(writer_->append_observable("cell_volume_m3", step, time, volume, "m+3"));
     }
     keep(writer_->flush());  // a killed job leaves every reported sample readable
-    ++samples_;
-    last_strain_ = s.strain_units;
+    sample_written(s.strain_units);
     if (events_.suspension_sample) events_.suspension_sample(suspension_sample_from(s));
   }
 
   const scenes::PlannedSuspension& planned_;
-  const JobEvents& events_;
   std::vector<std::int64_t> vertex_offset_{0};
   std::vector<double> frame_;
   std::vector<char> frame_has_;
   int frame_index_ = -1;
   int frame_received_ = 0;
-  double last_strain_ = 0.0;
-  int samples_ = 0;
 };
 
 // One converted suspension job: its parameters, plan and placement (computed once, at prepare).
@@ -246,16 +214,18 @@ class SuspensionJob final : public PreparedJob {
   // frame and combined connectivity (every cell's positions, 3 doubles per
   // vertex, and its tetrahedra, about 5 per vertex of 4 int32 each), and the
   // largest transient per-node buffer in double (a fluid velocity snapshot,
-  // 3 values).
+  // 3 values), and the snapshot positions a checkpointed run keeps (every
+  // cell's positions per frame, up to a fixed budget).
   std::int64_t memory_bytes() const override {
     const scenes::SuspensionSetup& setup = planned_.setup();
-    const double nodes = static_cast<double>(setup.flow.nx) * setup.flow.ny * setup.flow.nz;
     double vertices = 0.0;
     for (int kind : planned_.cell_kinds())
       vertices += static_cast<double>(
           cell_vertex_bound(planned_.params().kinds[static_cast<std::size_t>(kind)].cell));
     const double recorder = vertices * (3.0 * 8.0 + 5.0 * 4.0 * 4.0);
-    const double bytes = static_cast<double>(setup.memory_bytes) + nodes * 3.0 * 8.0 + recorder;
+    const double kept_snapshots = kept_snapshot_bytes(planned_.params().numerics.flow, vertices);
+    const double bytes = static_cast<double>(setup.memory_bytes) + flow_transient_bytes(setup.flow) +
+                         recorder + kept_snapshots;
     return kBaselineBytes + static_cast<std::int64_t>(std::min(bytes, 9e18));
   }
 
@@ -279,9 +249,13 @@ class SuspensionJob final : public PreparedJob {
     SuspensionRecorder recorder(writer->get(), planned, events);
     recorder.write_setup();
     if (events.progress) events.progress(0.0, "meshing and placing");
-    const scenes::SuspensionResult result = scenes::run_suspension(planned, recorder.callbacks());
+    scenes::SuspensionCallbacks callbacks = recorder.callbacks();
+    add_flow_checkpointing(callbacks.checkpointing, spec, options, events);
+    const scenes::SuspensionResult result = scenes::run_suspension(planned, callbacks);
     const Status written = recorder.finish(result);
     outcome = outcome_of(result.status, written, recorder.samples());
+    outcome.resumed_from_step = result.resumed_from_step;
+    outcome.resume_refused = result.resume_refused;
     if (outcome.status.ok() && events.progress)
       events.progress(1.0, std::string(scenes::stop_name(result.stop)));
     return outcome;

@@ -6,13 +6,16 @@
 // and the final positions; the scene has no random numbers and the worker
 // runs on one thread like the reference), each sample index reaches the
 // watcher once, the resumed attempt computes only what was left, and the
-// checkpoint is deleted when the job succeeds.
+// checkpoint is deleted when the job succeeds. The same for a suspension
+// job (three coarse cells): killed after its first checkpoint upload, it
+// completes on another worker from that checkpoint, bit-identical too.
 #include <cmath>
 #include <cstdio>
 #include <regex>
 
 #include "io/h5md.h"
 #include "jobs/job_spec.h"
+#include "jobs/suspension/suspension_spec.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "tests/service/service_harness.h"
 
@@ -41,6 +44,37 @@ v1::JobSpec checkpointed_flow(double max_strain = 16.0) {
   n->set_snapshot_every_strain(1.0);
   n->set_steady_tolerance(0.0);
   return spec;
+}
+
+// The tiny suspension of service_suspension_test (three cells of ~300
+// vertices, 15 x 24 x 12 nodes) run longer, every 0.1 strain sampled.
+v1::JobSpec checkpointed_suspension(double max_strain) {
+  v1::JobSpec spec;
+  spec.set_name("checkpointed suspension");
+  auto* s = spec.mutable_suspension();
+  auto* cells = s->add_cells();
+  cells->mutable_cell()->set_radius_m(4e-6);
+  cells->mutable_cell()->mutable_material()->set_youngs_modulus_pa(50.0);
+  cells->mutable_cell()->set_target_vertex_count(300);
+  cells->set_count(3);
+  s->set_capillary_number(0.2);
+  auto* n = s->mutable_numerics();
+  n->set_average_after_strain(0.5);
+  auto* flow = n->mutable_flow();
+  flow->set_cells_per_radius(3);
+  flow->set_max_strain(max_strain);
+  flow->set_sample_every_strain(0.1);
+  flow->set_snapshot_every_strain(0.5);
+  return spec;
+}
+
+// The steps after which the worker's log says a checkpoint was uploaded, in order.
+std::vector<std::int64_t> uploaded_checkpoint_steps(const std::string& log) {
+  std::vector<std::int64_t> steps;
+  static const std::regex uploaded(R"(checkpoint after step (\d+) \(sample \d+\): \d+ bytes)");
+  for (std::sregex_iterator it(log.begin(), log.end(), uploaded), end; it != end; ++it)
+    steps.push_back(std::stoll((*it)[1]));
+  return steps;
 }
 
 // "finished ok (N sample(s), X s)" of the worker log: the attempt's wall time.
@@ -137,12 +171,9 @@ TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
   ASSERT_TRUE(std::regex_search(log, resumed, std::regex(R"(resumed after step (\d+))")));
   const std::int64_t resumed_step = std::stoll(resumed[1]);
   // From the last checkpoint the killed worker uploaded.
-  std::int64_t last_uploaded = -1;
-  const std::string killed_log = first->log();
-  static const std::regex uploaded(R"(checkpoint after step (\d+) \(sample \d+\): \d+ bytes)");
-  for (std::sregex_iterator it(killed_log.begin(), killed_log.end(), uploaded), end; it != end; ++it)
-    last_uploaded = std::stoll((*it)[1]);
-  EXPECT_EQ(resumed_step, last_uploaded);
+  const std::vector<std::int64_t> uploaded = uploaded_checkpoint_steps(first->log());
+  ASSERT_FALSE(uploaded.empty());
+  EXPECT_EQ(resumed_step, uploaded.back());
   EXPECT_GT(resumed_step, 0);
   EXPECT_LT(resumed_step, reference.time_steps);
   const double second_attempt_s = attempt_seconds(log);
@@ -199,6 +230,95 @@ TEST_F(ServiceTest, StoppedFlowWorkerCheckpointsBeforeHandingTheJobBack) {
     EXPECT_EQ(samples[i].taylor_deformation(), reference.samples[i].taylor_deformation) << "sample " << i;
   }
   EXPECT_FALSE(fs::exists(dir_ / "data" / "checkpoints" / "job-1.ckpt"));
+}
+
+// A suspension job: the worker is killed right after its first checkpoint
+// upload; the next worker resumes from that checkpoint (its start step > 0)
+// and the samples it reports continue the first attempt's: each index once,
+// every value bit-identical to an uninterrupted in-process run.
+TEST_F(ServiceTest, KilledSuspensionWorkerIsResumedFromItsCheckpoint) {
+  const v1::JobSpec spec = checkpointed_suspension(4.0);
+  StatusOr<scenes::PlannedSuspension> planned = jobs::plan(spec.suspension());
+  ASSERT_TRUE(planned.ok()) << planned.status().to_string();
+  planned->set_threads(1);  // as the worker
+  const auto reference_start = std::chrono::steady_clock::now();
+  const scenes::SuspensionResult reference = scenes::run_suspension(*planned);
+  const double reference_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - reference_start).count();
+  ASSERT_TRUE(reference.status.ok()) << reference.status.to_string();
+  const int total_samples = static_cast<int>(reference.samples.size());
+  ASSERT_EQ(total_samples, 41);  // every 0.1 strain to 4
+
+  start_server(0, {"--lease-ttl-s", "1"});
+  const fs::path checkpoint = dir_ / "data" / "checkpoints" / "job-1.ckpt";
+  const std::string id = submit(spec);
+  ASSERT_EQ(id, "job-1");
+  Watcher watcher(*client_, id);
+  // A checkpoint every second of wall time (a quarter of the run); killed
+  // once the first is on the server and its upload finished (the worker
+  // logs it after the server committed it).
+  Process* first = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
+  const bool uploaded_one = eventually(
+      [&] { return fs::exists(checkpoint) && !uploaded_checkpoint_steps(first->log()).empty(); }, 120s);
+  first->signal(SIGKILL);
+  first->wait();
+  const int delivered_before_kill = watcher.max_sample_index();
+  const std::vector<std::int64_t> uploaded = uploaded_checkpoint_steps(first->log());
+  // The next worker before any assertion: the watcher ends with the job.
+  Process* second = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
+  ASSERT_TRUE(uploaded_one) << first->log();
+  ASSERT_FALSE(uploaded.empty()) << first->log();
+  EXPECT_LT(delivered_before_kill, total_samples - 1) << "the run ended before the kill";
+  watcher.join();
+  ASSERT_TRUE(watcher.status().ok()) << watcher.status().error_message();
+  const v1::Job job = get(id);
+  ASSERT_EQ(job.state(), v1::Job::SUCCEEDED) << job.reason();
+  EXPECT_EQ(job.attempt(), 2);
+  ASSERT_TRUE(eventually([&] { return attempt_seconds(second->log()) > 0; }, 10s)) << second->log();
+  const std::string log = second->log();
+  EXPECT_NE(log.find("resuming from the checkpoint of attempt 1"), std::string::npos) << log;
+  std::smatch resumed;
+  ASSERT_TRUE(std::regex_search(log, resumed, std::regex(R"(resumed after step (\d+))"))) << log;
+  const std::int64_t resumed_step = std::stoll(resumed[1]);
+  EXPECT_GT(resumed_step, 0);
+  EXPECT_LT(resumed_step, reference.time_steps);
+  // From the last checkpoint that reached the server: the first one or,
+  // when another finished between the poll and the kill, a later one.
+  EXPECT_GE(resumed_step, uploaded.front());
+
+  // Each sample index once, in order: the first attempt's, then the resumed
+  // attempt's from its checkpoint on, every value equal to the uninterrupted run.
+  std::vector<v1::SuspensionSample> samples;
+  for (const v1::JobEvent& e : watcher.events())
+    if (e.has_suspension_sample()) samples.push_back(e.suspension_sample());
+  ASSERT_EQ(static_cast<int>(samples.size()), total_samples);
+  for (int i = 0; i < total_samples; ++i) {
+    const scenes::SuspensionSample& r = reference.samples[static_cast<std::size_t>(i)];
+    EXPECT_EQ(samples[i].index(), i);
+    EXPECT_EQ(samples[i].strain(), r.strain_units) << "sample " << i;
+    EXPECT_EQ(samples[i].mean_taylor_deformation(), r.mean_taylor_deformation) << "sample " << i;
+    EXPECT_EQ(samples[i].relative_viscosity(), r.relative_viscosity) << "sample " << i;
+    EXPECT_EQ(samples[i].average_taylor_deformation(), r.average_taylor_deformation) << "sample " << i;
+    EXPECT_EQ(samples[i].contact_pairs(), r.contact_pairs) << "sample " << i;
+    ASSERT_EQ(samples[i].cells_size(), 3);
+    for (int c = 0; c < 3; ++c)
+      EXPECT_EQ(samples[i].cells(c).centroid_m(0), r.cells[static_cast<std::size_t>(c)].centroid_m[0])
+          << "sample " << i << " cell " << c;
+  }
+
+  // The result file holds the whole run: every frame, strain 0, 0.5, ..., 4.
+  const std::string h5 = (dir_ / "suspension.h5").string();
+  ASSERT_TRUE(client_->download(id, h5).ok());
+  auto frames = io::count_position_frames(h5, "cell");
+  ASSERT_TRUE(frames.ok()) << frames.status().to_string();
+  EXPECT_EQ(*frames, 9);
+  EXPECT_FALSE(fs::exists(checkpoint));
+  std::printf(
+      "checkpointed suspension: uninterrupted in-process %.2f s; killed after the first upload (step %lld, "
+      "%d of %d samples delivered), resumed after step %lld of %lld in %.2f s\n",
+      reference_s, static_cast<long long>(uploaded.front()), delivered_before_kill + 1, total_samples,
+      static_cast<long long>(resumed_step), static_cast<long long>(reference.time_steps),
+      attempt_seconds(log));
 }
 
 }  // namespace

@@ -17,8 +17,6 @@
 
 namespace cellflow::scenes::shear_flow_detail {
 
-static_assert(std::endian::native == std::endian::little, "the checkpoint format is little-endian");
-
 namespace {
 
 namespace fs = std::filesystem;
@@ -26,7 +24,6 @@ namespace fs = std::filesystem;
 constexpr std::uint64_t kMagic = 0x54504B43574C4643ULL;  // "CFLWCKPT" read as a little-endian word
 constexpr int kHeaderWords = 20;
 constexpr int kSampleWords = 16;
-constexpr std::size_t kChunkBytes = std::size_t{1} << 20;
 
 enum HeaderWord {
   kWordMagic,
@@ -51,92 +48,8 @@ enum HeaderWord {
   kWordHeaderChecksum,
 };
 
-std::uint64_t word_of(double v) {
-  return std::bit_cast<std::uint64_t>(v);
-}
-double double_of(std::uint64_t w) {
-  return std::bit_cast<double>(w);
-}
-
-// Appends words and byte blocks (whole words) to a file, hashing them.
-class Writer {
- public:
-  explicit Writer(std::ofstream& out) : out_(out) {}
-  void word(std::uint64_t w) {
-    hash_.add(w);
-    out_.write(reinterpret_cast<const char*>(&w), sizeof w);
-    bytes_ += sizeof w;
-  }
-  void real(double v) { word(word_of(v)); }
-  void reals(const std::vector<double>& v) {
-    for (double x : v) hash_.add(word_of(x));
-    out_.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * 8));
-    bytes_ += v.size() * 8;
-  }
-  void block(std::span<const std::byte> bytes) {
-    const std::size_t words = bytes.size() / 8;
-    for (std::size_t i = 0; i < words; ++i) {
-      std::uint64_t w;
-      std::memcpy(&w, bytes.data() + 8 * i, 8);
-      hash_.add(w);
-    }
-    out_.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    bytes_ += bytes.size();
-  }
-  std::uint64_t checksum() const { return hash_.state; }
-  std::uint64_t bytes() const { return bytes_; }
-
- private:
-  std::ofstream& out_;
-  WordHash hash_;
-  std::uint64_t bytes_ = 0;
-};
-
-// Reads words and blocks of a payload whose size was checked against the file.
-class Reader {
- public:
-  explicit Reader(std::ifstream& in) : in_(in) {}
-  bool word(std::uint64_t& w) {
-    if (!in_.read(reinterpret_cast<char*>(&w), sizeof w)) return false;
-    hash_.add(w);
-    return true;
-  }
-  bool real(double& v) {
-    std::uint64_t w;
-    if (!word(w)) return false;
-    v = double_of(w);
-    return true;
-  }
-  bool reals(std::vector<double>& v, std::size_t count) {
-    v.resize(count);
-    return block({reinterpret_cast<std::byte*>(v.data()), count * 8});
-  }
-  // In chunks, so a short file fails at the first missing chunk.
-  bool block(std::span<std::byte> bytes) {
-    for (std::size_t at = 0; at < bytes.size(); at += kChunkBytes) {
-      const std::size_t n = std::min(kChunkBytes, bytes.size() - at);
-      if (!in_.read(reinterpret_cast<char*>(bytes.data() + at), static_cast<std::streamsize>(n)))
-        return false;
-    }
-    for (std::size_t i = 0; i < bytes.size() / 8; ++i) {
-      std::uint64_t w;
-      std::memcpy(&w, bytes.data() + 8 * i, 8);
-      hash_.add(w);
-    }
-    return true;
-  }
-  std::uint64_t checksum() const { return hash_.state; }
-
- private:
-  std::ifstream& in_;
-  WordHash hash_;
-};
-
-std::uint64_t header_checksum(const std::array<std::uint64_t, kHeaderWords>& header) {
-  WordHash hash;
-  for (int i = 0; i < kWordHeaderChecksum; ++i) hash.add(header[i]);
-  return hash.state;
-}
+using Writer = CheckpointWriter;
+using Reader = CheckpointReader;
 
 // What the payload of these counts occupies; false on overflow.
 bool payload_bytes(std::uint64_t vertices, std::uint64_t samples, std::uint64_t snapshots,
@@ -176,19 +89,12 @@ bool read_sample(Reader& r, ShearFlowSample& s) {
          index < (std::uint64_t{1} << 31);
 }
 
-bool all_finite(const std::vector<double>& v) {
-  for (double x : v)
-    if (!std::isfinite(x)) return false;
-  return true;
-}
-
 Status refused(const std::string& why) {
-  return Status(StatusCode::kFailedPrecondition, "checkpoint refused: " + why);
+  return checkpoint_refused(why);
 }
 
 std::string mismatch(const char* what, std::uint64_t file, std::uint64_t run) {
-  return std::string(what) + " " + std::to_string(file) + " in the file, " + std::to_string(run) +
-         " in this run";
+  return checkpoint_mismatch(what, file, run);
 }
 
 }  // namespace

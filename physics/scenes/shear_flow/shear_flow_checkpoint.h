@@ -36,23 +36,13 @@
 
 #include "physics/core/status.h"
 #include "physics/lb/fluid.h"
+#include "physics/scenes/shear_flow/checkpoint_io.h"
 #include "physics/scenes/shear_flow/shear_flow.h"
 #include "physics/scenes/shear_flow/shear_flow_internal.h"
 
 namespace cellflow::scenes::shear_flow_detail {
 
 inline constexpr std::uint32_t kCheckpointFormatVersion = 1;
-
-// The 64-bit checksum of the format over whole words (multiply-xorshift; it
-// guards against truncation and corruption, not against forgery).
-struct WordHash {
-  std::uint64_t state = 0x243F6A8885A308D3ULL;
-  void add(std::uint64_t word) {
-    state ^= word;
-    state *= 0x9E3779B97F4A7C15ULL;
-    state ^= state >> 32;
-  }
-};
 
 // Hash of the reference mesh (positions and tets), to refuse a checkpoint
 // of a different mesh (another mesher version on another machine).

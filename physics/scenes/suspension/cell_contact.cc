@@ -96,6 +96,36 @@ void RepulsionSearch::build_list() {
   ++builds_;
 }
 
+bool RepulsionSearch::restore(std::span<const ContactCell> cells, std::span<const double> built_at,
+                              long long builds) {
+  std::size_t n = 0;
+  for (const ContactCell& cell : cells) n += cell.surface_vertices.size();
+  if (built_at.size() != 3 * n) return false;
+  const double lx = params_.box[0], lz = params_.box[2];
+  cell_of_.resize(n);
+  vertex_of_.resize(n);
+  std::size_t i = 0;
+  for (std::size_t c = 0; c < cells.size(); ++c) {
+    for (int v : cells[c].surface_vertices) {
+      cell_of_[i] = static_cast<int>(c);
+      vertex_of_[i] = v;
+      ++i;
+    }
+  }
+  // The wrapping of add_forces, applied to the build positions.
+  wrapped_.resize(3 * n);
+  built_at_.assign(built_at.begin(), built_at.end());
+  for (std::size_t k = 0; k < n; ++k) {
+    const double* x = &built_at_[3 * k];
+    wrapped_[3 * k] = x[0] - lx * std::floor(x[0] / lx);
+    wrapped_[3 * k + 1] = x[1];
+    wrapped_[3 * k + 2] = x[2] - lz * std::floor(x[2] / lz);
+  }
+  build_list();
+  builds_ = builds;
+  return true;
+}
+
 RepulsionReport RepulsionSearch::add_forces(std::span<const ContactCell> cells) {
   RepulsionReport report;
   report.min_gap = params_.range;

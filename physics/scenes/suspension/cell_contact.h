@@ -77,6 +77,14 @@ class RepulsionSearch {
   void invalidate() { valid_ = false; }
   // How many times the list was built.
   long long builds() const { return builds_; }
+  // Checkpoints: the positions (as given, 3 per listed vertex in the cells'
+  // order) at which the list was last built, and the list rebuilt from them
+  // for these cells (the same pairs in the same order as the list that was
+  // built there, so a resumed run sums the forces in the same order); the
+  // build count is set to `builds`. false (nothing changed): the positions
+  // do not fit the cells' surface vertices.
+  const std::vector<double>& built_positions() const { return built_at_; }
+  bool restore(std::span<const ContactCell> cells, std::span<const double> built_at, long long builds);
 
  private:
   void build_list();

@@ -10,9 +10,10 @@
 // fast band update every numerics.marking_every_steps steps after the
 // vertices moved); with every lambda = 1 nothing is marked.
 //
-// No checkpointing: a suspension run starts from step 0 every time (its
-// state would be every cell's vertices and the lattice, as in the single-cell
-// scene; not written yet).
+// Checkpoint and restart (suspension_checkpoint.h): at sample steps that are
+// marking steps, the state the loop carries from step to step; a resume
+// restores it, rebuilds the contact list from its build positions and
+// re-marks the cells exactly, and continues bit for bit.
 #include "physics/scenes/suspension/suspension.h"
 
 #include <algorithm>
@@ -37,6 +38,7 @@
 #include "physics/scenes/shear_flow/flow_limits.h"
 #include "physics/scenes/suspension/cell_contact.h"
 #include "physics/scenes/suspension/placement.h"
+#include "physics/scenes/suspension/suspension_checkpoint.h"
 #include "physics/scenes/suspension/suspension_internal.h"
 #include "physics/scenes/suspension/suspension_statistics.h"
 
@@ -81,7 +83,45 @@ struct Run {
   // Viscosity contrast (empty / null without): the phase of each cell.
   std::vector<std::uint8_t> phase_of_cell;
   marking::NodeMarking* marking = nullptr;
+  // Checkpoint and restart: what this run's checkpoints must match, the
+  // snapshots kept for them (checkpoints are written), the contact list
+  // state of a resume (resume_step > 0).
+  CheckpointLayout layout;
+  bool keep_snapshots = false;
+  std::vector<StoredFrame> snapshots;
+  std::int64_t resume_step = 0;
+  LoopState resumed;
 };
+
+// The sample, snapshot and stop schedule (as shear_flow.cc's schedule_of).
+struct Schedule {
+  std::int64_t sample_steps = 1;
+  std::int64_t snapshot_steps = 0;  // 0: no snapshots
+  std::int64_t max_steps = 0;
+  ShearFlowStop limit_stop = ShearFlowStop::kMaxStrain;
+};
+
+Schedule schedule_of(const PlannedSuspension& planned) {
+  const ShearFlowNumerics& n = planned.params().numerics.flow;
+  const ShearFlowSetup& setup = planned.setup().flow;
+  Schedule schedule;
+  schedule.sample_steps =
+      std::max<std::int64_t>(1, std::llround(n.sample_every_strain * setup.steps_per_strain));
+  schedule.snapshot_steps =
+      n.snapshot_every_strain > 0.0
+          ? std::max<std::int64_t>(1, std::llround(n.snapshot_every_strain * setup.steps_per_strain))
+          : 0;
+  double max_steps_real = std::ceil(n.max_strain * setup.steps_per_strain);
+  if (n.max_time_s > 0.0) {
+    const double time_steps = std::ceil(planned.units().time_to_lattice(n.max_time_s));
+    if (time_steps < max_steps_real) {
+      max_steps_real = time_steps;
+      schedule.limit_stop = ShearFlowStop::kMaxTime;
+    }
+  }
+  schedule.max_steps = static_cast<std::int64_t>(std::min(max_steps_real, 9e18));
+  return schedule;
+}
 
 std::string where(const PlannedSuspension& planned, std::int64_t step) {
   const ShearFlowSetup& setup = planned.setup().flow;
@@ -91,6 +131,16 @@ std::string where(const PlannedSuspension& planned, std::int64_t step) {
 }
 
 void emit_positions(Run& run, double time_s, const std::vector<std::vector<double>>& x_lb) {
+  if (run.keep_snapshots) {
+    std::size_t values = 0;
+    for (const std::vector<double>& x : x_lb) values += x.size();
+    if ((run.snapshots.size() + 1) * values * sizeof(double) <= kMaxCheckpointSnapshotBytes) {
+      StoredFrame frame{run.snapshot_index, time_s, {}};
+      frame.x_lb.reserve(values);
+      for (const std::vector<double>& x : x_lb) frame.x_lb.insert(frame.x_lb.end(), x.begin(), x.end());
+      run.snapshots.push_back(std::move(frame));
+    }
+  }
   if (!run.callbacks->on_positions) return;
   const double dx = run.planned->units().dx_m();
   std::vector<double> positions;
@@ -176,23 +226,13 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
   const double dx = u.dx_m();
   coupling::ImmersedCells& cells = run.cells;
 
-  // Schedule (as shear_flow.cc's schedule_of).
-  const std::int64_t sample_steps =
-      std::max<std::int64_t>(1, std::llround(n.sample_every_strain * setup.steps_per_strain));
-  const std::int64_t snapshot_steps =
-      n.snapshot_every_strain > 0.0
-          ? std::max<std::int64_t>(1, std::llround(n.snapshot_every_strain * setup.steps_per_strain))
-          : 0;
-  double max_steps_real = std::ceil(n.max_strain * setup.steps_per_strain);
-  ShearFlowStop limit_stop = ShearFlowStop::kMaxStrain;
-  if (n.max_time_s > 0.0) {
-    const double time_steps = std::ceil(u.time_to_lattice(n.max_time_s));
-    if (time_steps < max_steps_real) {
-      max_steps_real = time_steps;
-      limit_stop = ShearFlowStop::kMaxTime;
-    }
-  }
-  const std::int64_t max_steps = static_cast<std::int64_t>(std::min(max_steps_real, 9e18));
+  const Schedule schedule = schedule_of(planned);
+  const std::int64_t sample_steps = schedule.sample_steps;
+  const std::int64_t snapshot_steps = schedule.snapshot_steps;
+  const std::int64_t max_steps = schedule.max_steps;
+  const ShearFlowStop limit_stop = schedule.limit_stop;
+  const ShearFlowCheckpointing& ck = cb.checkpointing;
+  const bool checkpoints = ck.due && !ck.write_path.empty();
   const double wall_margin = 0.5 * width;
 
   // Contact: F0 = contact_strength mu dx^2 (mu of the first kind), range in dx.
@@ -205,6 +245,13 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
   rp.wall_offset = wall_margin;
   contact_repulsion::RepulsionSearch search(rp);
   std::vector<contact_repulsion::ContactCell> contact_cells(cells.size());
+  auto bind_contact_cells = [&] {
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+      contact_cells[c].positions = cells[c].positions_lattice.data();
+      contact_cells[c].forces = cells[c].forces_lattice.data();
+      contact_cells[c].surface_vertices = run.kinds[run.cell_kind[c]].surface_vertices;
+    }
+  };
 
   auto fail = [&](std::int64_t step, const std::string& cause) {
     result.status = numerical_failure(where(planned, step) + ": " + cause);
@@ -214,8 +261,60 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
     emit_positions(run, u.time_to_si(static_cast<double>(result.samples.back().time_step)), run.last_good_lb);
   };
 
+  // Writes a checkpoint after `step` and tells the caller.
+  auto write_checkpoint_now = [&](std::int64_t step) {
+    const auto t0 = Clock::now();
+    ShearFlowCheckpointWritten written;
+    written.path = ck.write_path;
+    written.time_step = step;
+    written.last_sample_index = static_cast<int>(result.samples.size()) - 1;
+    LoopState loop;
+    loop.snapshot_index = run.snapshot_index;
+    loop.last_contact_pairs = run.last_contact_pairs;
+    loop.contact_list_builds = search.builds();
+    loop.marking_updates = run.marking != nullptr ? run.marking->stats().updates : 0;
+    loop.contact_built_at = search.built_positions();
+    loop.snapshots = std::move(run.snapshots);
+    StatusOr<std::uint64_t> bytes =
+        write_checkpoint(run.layout, cells, loop, result.samples, fluid, step, ck.write_path);
+    run.snapshots = std::move(loop.snapshots);
+    if (bytes.ok()) {
+      written.bytes = *bytes;
+      result.checkpoints_written++;
+    } else {
+      written.status = bytes.status();
+    }
+    written.seconds = seconds_since(t0);
+    if (ck.on_written) ck.on_written(written);
+  };
+
   std::int64_t step = 0;
-  {
+  bool stop_pending = false;  // stop at the next checkpoint step, after its checkpoint
+  if (run.resume_step > 0) {
+    // The restored state: the contact list as it was built, the recorder
+    // told what the run had recorded (the meshes went out already).
+    step = run.resume_step;
+    bind_contact_cells();
+    if (!search.restore(contact_cells, run.resumed.contact_built_at, run.resumed.contact_list_builds)) {
+      result.status = Status(StatusCode::kInternal, "checkpoint: the contact list does not fit the cells");
+      return;
+    }
+    run.last_contact_pairs = run.resumed.last_contact_pairs;
+    run.last_good_lb = current_positions(run);
+    if (cb.on_positions) {
+      for (const StoredFrame& frame : run.snapshots) {
+        std::vector<double> positions;
+        std::size_t at = 0;
+        for (std::size_t c = 0; c < cells.size(); ++c) {
+          positions.resize(cells[c].positions_lattice.size());
+          for (double& x : positions) x = frame.x_lb[at++] * dx;
+          cb.on_positions(frame.index, frame.time_s, static_cast<int>(c), positions);
+        }
+      }
+    }
+    if (cb.on_sample)
+      for (const SuspensionSample& s : result.samples) cb.on_sample(s);
+  } else {
     const auto t0 = Clock::now();
     const SuspensionSample s = take_sample<T>(run, fluid, result, 0);
     run.last_good_lb = current_positions(run);
@@ -253,11 +352,7 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
     result.elastic_s += std::chrono::duration<double>(t1 - t0).count();
 
     // Contact repulsion, added to the elastic forces before spreading.
-    for (std::size_t c = 0; c < cells.size(); ++c) {
-      contact_cells[c].positions = cells[c].positions_lattice.data();
-      contact_cells[c].forces = cells[c].forces_lattice.data();
-      contact_cells[c].surface_vertices = run.kinds[run.cell_kind[c]].surface_vertices;
-    }
+    bind_contact_cells();
     const contact_repulsion::RepulsionReport contact = search.add_forces(contact_cells);
     run.last_contact_pairs = contact.contact_pairs;
     result.contact_list_builds = search.builds();
@@ -346,7 +441,24 @@ void time_loop(Run& run, lb::Fluid& fluid, SuspensionResult& result) {
       emit_positions(run, time_s, current_positions(run));
       if (n.fluid_snapshots) emit_fluid_velocity(fluid, u, run.snapshot_index, time_s, cb.on_fluid_velocity);
     }
-    if (cb.should_stop && (sample_step || step % 256 == 0) && cb.should_stop()) {
+    // Checkpoints at sample steps that are marking steps (the resume
+    // re-marks exactly where the uninterrupted run marked).
+    const bool checkpoint_step =
+        sample_step && (run.marking == nullptr || step % sn.marking_every_steps == 0);
+    bool checkpointed = false;
+    if (checkpoints && checkpoint_step && (stop_pending || ck.due())) {
+      write_checkpoint_now(step);
+      checkpointed = true;
+    }
+    if (cb.should_stop && (sample_step || step % 256 == 0) && (stop_pending || cb.should_stop())) {
+      // A stop that keeps the work (a worker shutting down, not a cancel):
+      // on to the next checkpoint step, where a checkpoint can be taken.
+      const bool keep = checkpoints && ck.checkpoint_before_stop && ck.checkpoint_before_stop();
+      if (keep && !checkpoint_step) {
+        stop_pending = true;
+        continue;
+      }
+      if (keep && !checkpointed) write_checkpoint_now(step);
       result.stop = ShearFlowStop::kCancelled;
       result.status = Status(StatusCode::kCancelled, "stopped on request at " + where(planned, step));
       break;
@@ -460,6 +572,64 @@ SuspensionResult run_suspension(const PlannedSuspension& planned, const Suspensi
     cell.marker_scale = 1.0 - radius_offset(n) * u.dx_m() / kind.radius_m;
   }
 
+  // Checkpoint and restart (suspension_checkpoint.h).
+  const ShearFlowCheckpointing& ck = callbacks.checkpointing;
+  {
+    const Schedule schedule = schedule_of(planned);
+    CheckpointLayout& layout = run.layout;
+    layout.spec_hash = ck.spec_hash;
+    layout.cells_hash = cells_hash(run.cells, run.cell_kind);
+    for (int kind : run.cell_kind) layout.contact_vertices += run.kinds[kind].surface_vertices.size();
+    layout.marking = !phase_taus.empty();
+    layout.sample_steps = schedule.sample_steps;
+    layout.snapshot_steps = schedule.snapshot_steps;
+    layout.max_steps = schedule.max_steps;
+    layout.marking_every = params.numerics.marking_every_steps;
+  }
+  run.keep_snapshots = ck.due && !ck.write_path.empty();
+  if (!ck.resume_path.empty()) {
+    StatusOr<RestoredState> restored = read_checkpoint(ck.resume_path, run.layout, run.cells, *fluid);
+    if (restored.ok()) {
+      run.resume_step = restored->step;
+      result.resumed_from_step = restored->step;
+      for (std::size_t c = 0; c < run.cells.size(); ++c)
+        run.cells[c].positions_lattice = std::move(restored->positions[c]);
+      result.samples = std::move(restored->samples);
+      // The averaging series and the largest contact count, as take_sample built them.
+      for (const SuspensionSample& s : result.samples) {
+        if (s.strain_units >= params.numerics.average_after_strain - 1e-9) {
+          run.mean_d_series.push_back(s.mean_taylor_deformation);
+          run.viscosity_series.push_back(s.relative_viscosity);
+        }
+        result.max_contact_pairs = std::max(result.max_contact_pairs, s.contact_pairs);
+      }
+      run.snapshot_index = restored->loop.snapshot_index;
+      run.snapshots = std::move(restored->loop.snapshots);
+      run.resumed = std::move(restored->loop);
+      const std::string resumed_after =
+          "resumed from the checkpoint after time step " + std::to_string(run.resume_step);
+      if (n.snapshot_every_strain > 0.0 &&
+          run.snapshots.size() < static_cast<std::size_t>(run.snapshot_index) + 1) {
+        result.warnings.push_back(
+            resumed_after + ": " + std::to_string(run.snapshot_index + 1 - run.snapshots.size()) +
+            " position frames before it (beyond the checkpoint's frame budget) are not in "
+            "this result");
+      }
+      if (n.fluid_snapshots && n.snapshot_every_strain > 0.0) {
+        result.warnings.push_back(resumed_after +
+                                  ": the fluid velocity frames before it are not in this result");
+      }
+    } else {
+      result.resume_refused = restored.status().message();
+      result.warnings.push_back(result.resume_refused + "; the run started from step 0");
+      // The populations may have been overwritten by the refused file.
+      start_couette_profile(*fluid, u.velocity_to_lattice(setup.wall_speed_m_per_s));
+    }
+  }
+
+  // The marking is not in the checkpoint: a resume marks the restored
+  // positions exactly (as the start does), at a marking step of the
+  // uninterrupted run, whose band update there equals the exact test.
   std::optional<marking::NodeMarking> node_marking;
   if (!phase_taus.empty()) {
     const auto tm = std::chrono::steady_clock::now();
@@ -476,6 +646,7 @@ SuspensionResult run_suspension(const PlannedSuspension& planned, const Suspensi
       return result;
     }
     node_marking = std::move(*made);
+    node_marking->set_update_count(run.resumed.marking_updates);
     if (Status st = marking::apply_phases(*node_marking, run.phase_of_cell, *fluid); !st.ok()) {
       result.status = st;
       return result;

@@ -18,8 +18,8 @@
 //
 // Implementation: suspension_plan.cc (validation, plan, placement via
 // placement.h), suspension.cc (time loop), cell_contact.h (repulsion),
-// suspension_statistics.h (block averages). No checkpointing: a run always
-// starts from step 0.
+// suspension_statistics.h (block averages), suspension_checkpoint.h
+// (checkpoint and restart).
 //
 // SI at this interface; lattice units only inside, converted through
 // physics/units. This header is the contract between the scene (physics)
@@ -171,6 +171,21 @@ struct SuspensionCallbacks {
   // At each snapshot: every cell's current positions (box coordinates, m).
   std::function<void(int index, double time_s, int cell, std::span<const double> positions_m)> on_positions;
   std::function<void(const FluidVelocitySnapshot&)> on_fluid_velocity;
+  // Checkpoint and restart, as the single cell's (ShearFlowCheckpointing,
+  // shear_flow.h; format in suspension_checkpoint.h): the state after a
+  // sample step (with a viscosity contrast a sample step that is also a
+  // marking step: one of every lcm(sample interval, marking_every_steps)
+  // steps) is every cell's vertex positions, the lattice populations and
+  // phase, the contact list's build positions, the samples so far (the time
+  // averages follow from them) and the snapshot positions so far (up to
+  // kMaxCheckpointSnapshotBytes). A run resumed from it continues bit for
+  // bit as the run that wrote it would have (same spec, thread count and
+  // binary), except the fluid velocity frames before it (not kept; a warning
+  // says so). A resumed run replays on_meshes, the stored snapshots
+  // (on_positions) and every stored sample (on_sample) before it steps on.
+  // A refused checkpoint (ShearFlowCheckpointing::resume_path is hostile
+  // input) means a run from step 0, the reason in resume_refused.
+  ShearFlowCheckpointing checkpointing;
 };
 
 struct SuspensionResult {
@@ -183,9 +198,14 @@ struct SuspensionResult {
   int max_contact_pairs = 0;
   std::vector<std::string> warnings;
   std::int64_t time_steps = 0;
+  // The step this run resumed after (checkpointing.resume_path), -1: from 0.
+  std::int64_t resumed_from_step = -1;
+  std::string resume_refused;  // why the checkpoint was not used (the run started from 0)
+  int checkpoints_written = 0;
   double wall_time_s = 0.0;
-  // Wall time split (seconds): LB, elastic forces, spreading + interpolation,
-  // contact search and forces, marking, observables.
+  // Wall time split (seconds) of this run (a resumed one: since the resume):
+  // LB, elastic forces, spreading + interpolation, contact search and
+  // forces, marking, observables.
   double lattice_s = 0.0, elastic_s = 0.0, coupling_s = 0.0, contact_s = 0.0, marking_s = 0.0,
          observables_s = 0.0;
   // Work counters: builds of the contact pair list (cell_contact.h), marking

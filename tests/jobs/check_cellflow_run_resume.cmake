@@ -1,0 +1,31 @@
+# cellflow-run's checkpoint and restart of a flow job (--result, --checkpoint,
+# --resume): a run that writes checkpoints, a run resumed from the last one,
+# and a run given a foreign file, which is refused and runs from the start.
+# Arguments: RUNNER, SPEC, DIR (scratch). One thread: ctest runs tests side by side.
+file(REMOVE_RECURSE ${DIR})
+file(MAKE_DIRECTORY ${DIR})
+function(run_checked out_var)
+  execute_process(COMMAND ${RUNNER} ${SPEC} --threads 1 ${ARGN} RESULT_VARIABLE code ERROR_VARIABLE err)
+  if(NOT code EQUAL 0)
+    message(FATAL_ERROR "cellflow-run ${ARGN} exited with ${code}: ${err}")
+  endif()
+  set(${out_var} "${err}" PARENT_SCOPE)
+endfunction()
+function(expect text what)
+  string(FIND "${text}" "${what}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "expected \"${what}\" in:\n${text}")
+  endif()
+endfunction()
+
+run_checked(first -r ${DIR}/first.h5 --checkpoint ${DIR}/run.ckpt --checkpoint-every-s 0.05)
+expect("${first}" "checkpoint after step")
+if(NOT EXISTS ${DIR}/run.ckpt)
+  message(FATAL_ERROR "no checkpoint written:\n${first}")
+endif()
+run_checked(second -r ${DIR}/second.h5 --resume ${DIR}/run.ckpt)
+expect("${second}" "resumed after step")
+file(WRITE ${DIR}/junk.ckpt "not a checkpoint at all, and longer than a header of twenty-one words: ................................................................................................................................................")
+run_checked(third -r ${DIR}/third.h5 --resume ${DIR}/junk.ckpt)
+expect("${third}" "checkpoint refused: not a suspension checkpoint")
+expect("${third}" "ran from the start")

@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
         get("nodal", 0.0) != 0.0 ? elastic::VolumetricTerm::kNodalAverage : elastic::VolumetricTerm::kPerTet;
   n.relaxation_time = get("tau", n.relaxation_time);
   n.single_precision = get("float", n.single_precision ? 1 : 0) != 0;
+  n.elastic_single_precision = get("elastic_float", n.elastic_single_precision ? 1 : 0) != 0;
   if (args.count("kernel")) {
     StatusOr<ibm::Kernel> k = ibm::parse_kernel(args["kernel"]);
     if (!k.ok()) {

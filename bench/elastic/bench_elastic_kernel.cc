@@ -5,6 +5,8 @@
 // machine). Run with --benchmark_repetitions=5 and quote medians.
 // BM_ElasticForcesSimd runs each SIMD copy of the force loop (generic SSE2,
 // AVX2, AVX-512; the library picks the best at run time) on one thread.
+// The argument float:1 runs the single-precision loop (ForcePrecision::kFloat,
+// the flow scenes' default), float:0 the double one.
 //
 // BM_ElasticForcesFlowCell is the force call of a flow step: the default flow
 // cell (sphere of R = 6 um, mesh::kDefaultSphereVertexCount vertices, E = 10 Pa,

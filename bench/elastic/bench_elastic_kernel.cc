@@ -5,6 +5,8 @@
 // machine). Run with --benchmark_repetitions=5 and quote medians.
 // BM_ElasticForcesSimd runs each SIMD copy of the force loop (generic SSE2,
 // AVX2, AVX-512; the library picks the best at run time) on one thread.
+// The argument float:1 runs the single-precision loop (ForcePrecision::kFloat,
+// the flow scenes' default), float:0 the double one.
 //
 // BM_ElasticForcesFlowCell is the force call of a flow step: the default flow
 // cell (sphere of R = 6 um, mesh::kDefaultSphereVertexCount vertices, E = 10 Pa,
@@ -92,30 +94,34 @@ void set_counters(benchmark::State& state, std::size_t num_tets, int threads, do
       static_cast<double>(num_tets) * static_cast<double>(state.iterations()) / cpu_seconds;
 }
 
-// args: threads, Mooney-Rivlin (0: w = 1 neo-Hookean path, 1: w = 0.5)
+ForcePrecision precision_arg(const benchmark::State& state, int index) {
+  return state.range(index) ? ForcePrecision::kFloat : ForcePrecision::kDouble;
+}
+
+// args: threads, Mooney-Rivlin (0: w = 1 neo-Hookean path, 1: w = 0.5),
+// float (1: ForcePrecision::kFloat, the flow scenes' loop)
 void BM_ElasticForces(benchmark::State& state) {
   const int threads = static_cast<int>(state.range(0));
   const Scene& s = scene(mooney_rivlin_w(state));
+  const ForcePrecision precision = precision_arg(state, 2);
   std::vector<double> forces(s.positions.size(), 0.0);
   const double cpu_start = process_cpu_seconds();
   for (auto _ : state) {
-    const ElasticEvaluation eval = add_elastic_forces(s.body, s.positions.data(), forces.data(), threads);
+    const ElasticEvaluation eval =
+        add_elastic_forces(s.body, s.positions.data(), forces.data(), threads, precision);
     benchmark::DoNotOptimize(eval);
     benchmark::ClobberMemory();
   }
   set_counters(state, s.body.num_tets(), threads, process_cpu_seconds() - cpu_start);
 }
 BENCHMARK(BM_ElasticForces)
-    ->ArgNames({"threads", "mooney_rivlin"})
-    ->Args({1, 0})
-    ->Args({2, 0})
-    ->Args({1, 1})
-    ->Args({2, 1})
+    ->ArgNames({"threads", "mooney_rivlin", "float"})
+    ->ArgsProduct({{1, 2}, {0, 1}, {0, 1}})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 
 // One SIMD copy of the force loop on one thread (add_elastic_forces_of_range
-// over all tets). args: level (1 generic SSE2, 2 AVX2, 3 AVX-512), Mooney-Rivlin.
+// over all tets). args: level (1 generic SSE2, 2 AVX2, 3 AVX-512), Mooney-Rivlin, float.
 void BM_ElasticForcesSimd(benchmark::State& state) {
   const TetSimd level = static_cast<TetSimd>(state.range(0));
   if (!tet_simd_supported(level)) {
@@ -123,12 +129,13 @@ void BM_ElasticForcesSimd(benchmark::State& state) {
     return;
   }
   const Scene& s = scene(mooney_rivlin_w(state));
+  const ForcePrecision precision = precision_arg(state, 2);
   const std::int64_t num_tets = static_cast<std::int64_t>(s.body.num_tets());
   std::vector<double> forces(s.positions.size(), 0.0);
   const double cpu_start = process_cpu_seconds();
   for (auto _ : state) {
     const ElasticEvaluation eval =
-        add_elastic_forces_of_range(s.body, s.positions.data(), forces.data(), 0, num_tets, level);
+        add_elastic_forces_of_range(s.body, s.positions.data(), forces.data(), 0, num_tets, level, precision);
     benchmark::DoNotOptimize(eval);
     benchmark::ClobberMemory();
   }
@@ -136,8 +143,8 @@ void BM_ElasticForcesSimd(benchmark::State& state) {
   state.SetLabel(tet_simd_name(level));
 }
 BENCHMARK(BM_ElasticForcesSimd)
-    ->ArgNames({"level", "mooney_rivlin"})
-    ->ArgsProduct({{1, 2, 3}, {0, 1}})
+    ->ArgNames({"level", "mooney_rivlin", "float"})
+    ->ArgsProduct({{1, 2, 3}, {0, 1}, {0, 1}})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 
@@ -186,9 +193,11 @@ const Scene* flow_cell(double w) {
   return slot.get();
 }
 
-// args: Mooney-Rivlin (0: w = 1, the flow default; 1: w = 0.5)
+// args: Mooney-Rivlin (0: w = 1, the flow default; 1: w = 0.5), float
+// (1: ForcePrecision::kFloat, the flow scenes' default loop)
 void BM_ElasticForcesFlowCell(benchmark::State& state) {
   const Scene* s = flow_cell(state.range(0) ? 0.5 : 1.0);
+  const ForcePrecision precision = precision_arg(state, 1);
   if (s == nullptr) {
     state.SkipWithError("sphere mesh failed");
     return;
@@ -197,7 +206,8 @@ void BM_ElasticForcesFlowCell(benchmark::State& state) {
   const double cpu_start = process_cpu_seconds();
   for (auto _ : state) {
     std::fill(forces.begin(), forces.end(), 0.0);  // as the flow step does
-    const ElasticEvaluation eval = add_elastic_forces(s->body, s->positions.data(), forces.data(), 1);
+    const ElasticEvaluation eval =
+        add_elastic_forces(s->body, s->positions.data(), forces.data(), 1, precision);
     benchmark::DoNotOptimize(eval);
     benchmark::ClobberMemory();
   }
@@ -207,9 +217,8 @@ void BM_ElasticForcesFlowCell(benchmark::State& state) {
       benchmark::Counter(1e6 * (process_cpu_seconds() - cpu_start) / static_cast<double>(state.iterations()));
 }
 BENCHMARK(BM_ElasticForcesFlowCell)
-    ->ArgName("mooney_rivlin")
-    ->Arg(0)
-    ->Arg(1)
+    ->ArgNames({"mooney_rivlin", "float"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
     ->UseRealTime()
     ->Unit(benchmark::kMicrosecond);
 

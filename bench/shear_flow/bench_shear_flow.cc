@@ -16,7 +16,7 @@
 //    followed by a Markdown table of the per-step split (medians of timed
 //    blocks, the kernels as the scene calls them: coupling serial, lattice
 //    with the OpenMP default).
-//      bench_shear_flow [--benchmark_filter=...] [--ca=0.2] [--cpr=6]
+//      bench_shear_flow [--benchmark_filter=...] [--ca=0.2] [--cpr=6] [--elastic_float=0|1]
 //
 // 2. Time against error (--study): run_shear_flow at Ca (default 0.2) to a
 //    steady D with the default options for each cells_per_radius in the list
@@ -59,6 +59,7 @@ struct Options {
   double max_strain = 40.0;
   int threads = 0;
   ibm::Kernel kernel = ibm::Kernel::kPeskin4;
+  int elastic_float = -1;  // --elastic_float=0|1: ShearFlowNumerics::elastic_single_precision; -1: default
   bool study = false;
 };
 
@@ -79,6 +80,7 @@ ShearFlowParams bench_params(double ca, double cpr, int vertices) {
   p.numerics.ibm_kernel = options().kernel;
   p.numerics.threads = options().threads;
   p.numerics.max_strain = options().max_strain;
+  if (options().elastic_float >= 0) p.numerics.elastic_single_precision = options().elastic_float != 0;
   return p;
 }
 
@@ -130,7 +132,9 @@ Coupled& coupled() {
   c->fluid = std::make_unique<lb::Fluid>(lb::make_fluid(fp).value());
   lb::update_velocity_field(*c->fluid);
   const double centre[3] = {0.5 * fp.nx, 0.5 * fp.ny, 0.5 * fp.nz};
-  coupling::add_cell(c->cells, c->mesh, c->body, u, centre);
+  coupling::ImmersedCell& immersed = coupling::add_cell(c->cells, c->mesh, c->body, u, centre);
+  immersed.elastic_precision = p.numerics.elastic_single_precision ? elastic::ForcePrecision::kFloat
+                                                                   : elastic::ForcePrecision::kDouble;
   // A deformed cell (as in a run): stretch along the extensional axis.
   for (std::size_t v = 0; v < c->mesh.num_vertices(); ++v) {
     double* x = &c->cells[0].positions_lattice[3 * v];
@@ -415,6 +419,8 @@ int main(int argc, char** argv) {
       options().max_strain = std::atof(a + 13);
     } else if (std::strncmp(a, "--threads=", 10) == 0) {
       options().threads = std::atoi(a + 10);
+    } else if (std::strncmp(a, "--elastic_float=", 16) == 0) {
+      options().elastic_float = std::atoi(a + 16);
     } else if (std::strncmp(a, "--kernel=", 9) == 0) {
       const auto k = cellflow::ibm::parse_kernel(a + 9);
       if (!k.ok()) {

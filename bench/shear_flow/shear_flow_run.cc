@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
         get("nodal", 0.0) != 0.0 ? elastic::VolumetricTerm::kNodalAverage : elastic::VolumetricTerm::kPerTet;
   n.relaxation_time = get("tau", n.relaxation_time);
   n.single_precision = get("float", n.single_precision ? 1 : 0) != 0;
+  n.elastic_single_precision = get("elastic_float", n.elastic_single_precision ? 1 : 0) != 0;
   if (args.count("kernel")) {
     StatusOr<ibm::Kernel> k = ibm::parse_kernel(args["kernel"]);
     if (!k.ok()) {
@@ -78,9 +79,10 @@ int main(int argc, char** argv) {
   cb.on_sample = [&](const scenes::ShearFlowSample& s) {
     if (s.index % every != 0) return;
     std::printf(
-        "%5d strain %7.3f D %.5f incl %6.2f net_strain %.4f a1 %.3g m tank_treading %.4g /s V %.6g m3\n",
+        "%5d strain %7.3f D %.5f incl %6.2f net_strain %.4f a1 %.3g m tank_treading %.4g /s V %.6g m3 "
+        "D_full %.10g incl_full %.10g\n",
         s.index, s.strain_units, s.taylor_deformation, s.inclination_deg, s.net_strain, s.semi_axes_m[0],
-        s.tank_treading_frequency_per_s, s.volume_m3);
+        s.tank_treading_frequency_per_s, s.volume_m3, s.taylor_deformation, s.inclination_deg);
     std::fflush(stdout);
   };
   cb.on_restart = [](const scenes::ShearFlowRestart& r) {

@@ -59,6 +59,7 @@ Status convert_numerics(const v1::ShearFlowNumerics& in, scenes::ShearFlowNumeri
     n.ibm_kernel = *kernel;
   }
   if (in.has_single_precision()) n.single_precision = in.single_precision();
+  if (in.has_elastic_single_precision()) n.elastic_single_precision = in.elastic_single_precision();
   if (in.has_sample_every_strain()) n.sample_every_strain = in.sample_every_strain();
   if (in.has_snapshot_every_strain()) n.snapshot_every_strain = in.snapshot_every_strain();
   if (in.has_fluid_snapshots()) n.fluid_snapshots = in.fluid_snapshots();

@@ -115,8 +115,8 @@ elastic::ElasticEvaluation compute_elastic_forces(ImmersedCell& cell, int thread
     cell.positions_m[i] = (cell.positions_lattice[i] - cell.origin_lattice[i % 3]) * dx;
   }
   std::fill(cell.forces_n.begin(), cell.forces_n.end(), 0.0);
-  const elastic::ElasticEvaluation eval =
-      elastic::add_elastic_forces(*cell.body, cell.positions_m.data(), cell.forces_n.data(), threads);
+  const elastic::ElasticEvaluation eval = elastic::add_elastic_forces(
+      *cell.body, cell.positions_m.data(), cell.forces_n.data(), threads, cell.elastic_precision);
   // F_lb = F dt^2 / (m dx)
   for (std::size_t i = 0; i < n; ++i) cell.forces_lattice[i] = cell.forces_n[i] * cell.newton_to_lattice;
   return eval;

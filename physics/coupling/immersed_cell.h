@@ -53,7 +53,10 @@ struct ImmersedCell {
   std::vector<double> markers_lattice;  // marker positions of the last spread / advect (scale != 1)
   double spacing_m = 0.0;               // dx
   double newton_to_lattice = 0.0;       // F_lb = F dt^2 / (m dx) per newton
-  NodeBox last_support;                 // nodes this cell's last spread touched
+  // Arithmetic of the elastic force loop (elastic_body.h); the flow scene
+  // sets it from ShearFlowNumerics::elastic_single_precision.
+  elastic::ForcePrecision elastic_precision = elastic::ForcePrecision::kDouble;
+  NodeBox last_support;  // nodes this cell's last spread touched
 };
 
 struct AdvectReport {

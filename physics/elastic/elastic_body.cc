@@ -52,6 +52,42 @@ void build_lane_blocks(ElasticBody& body) {
       body.block_vertices[kTetBlockLanes * (4 * block + a) + lane] = body.tets[4 * t + a];
     }
   }
+  // Float B, and per block M = B B^T (M_00, M_11, M_22, M_01, M_02, M_12) and
+  // det B: the inputs of the float neo-Hookean lane (elastic_forces.cc).
+  body.float_block_b_matrix.resize(body.block_b_matrix.size());
+  for (std::size_t k = 0; k < body.block_b_matrix.size(); ++k) {
+    body.float_block_b_matrix[k] = static_cast<float>(body.block_b_matrix[k]);
+  }
+  body.float_block_neo_hookean.assign(num_blocks * kFloatNeoHookeanRows * kTetBlockLanes, 0.0f);
+  for (std::size_t t = 0; t < num_tets; ++t) {
+    const std::size_t block = t / kTetBlockLanes;
+    const std::size_t lane = t % kTetBlockLanes;
+    const double* b = body.b_matrix.data() + 9 * t;
+    const auto row = [&](int k) -> float& {
+      return body.float_block_neo_hookean[kTetBlockLanes * (kFloatNeoHookeanRows * block + k) + lane];
+    };
+    // M_ac = B_al B_cl
+    const auto m = [&](int a, int c) {
+      return b[3 * a] * b[3 * c] + b[3 * a + 1] * b[3 * c + 1] + b[3 * a + 2] * b[3 * c + 2];
+    };
+    row(0) = static_cast<float>(m(0, 0));
+    row(1) = static_cast<float>(m(1, 1));
+    row(2) = static_cast<float>(m(2, 2));
+    row(3) = static_cast<float>(m(0, 1));
+    row(4) = static_cast<float>(m(0, 2));
+    row(5) = static_cast<float>(m(1, 2));
+    row(6) = static_cast<float>(b[0] * (b[4] * b[8] - b[5] * b[7]) + b[1] * (b[5] * b[6] - b[3] * b[8]) +
+                                b[2] * (b[3] * b[7] - b[4] * b[6]));
+  }
+  const auto padded_float = [&](const std::vector<double>& per_tet, std::vector<float>& out) {
+    out.assign(num_blocks * kTetBlockLanes, 0.0f);
+    for (std::size_t t = 0; t < std::min(num_tets, per_tet.size()); ++t)
+      out[t] = static_cast<float>(per_tet[t]);
+  };
+  padded_float(body.ref_volume_m3, body.float_ref_volume_m3);
+  padded_float(body.mu1_pa, body.float_mu1_pa);
+  padded_float(body.mu2_pa, body.float_mu2_pa);
+  padded_float(body.kappa_pa, body.float_kappa_pa);
 }
 
 StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<const Material> materials,

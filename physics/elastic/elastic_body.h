@@ -35,6 +35,8 @@ enum class VolumetricTerm {
 // Tets per lane block of the force loop (elastic_forces.cc) and of the
 // lane-blocked copies in ElasticBody.
 constexpr int kTetBlockLanes = 16;
+// Rows of ElasticBody::float_block_neo_hookean per block.
+constexpr int kFloatNeoHookeanRows = 7;
 
 // Precomputed reference data, one entry per tetrahedron (structure of arrays).
 struct ElasticBody {
@@ -49,6 +51,14 @@ struct ElasticBody {
   // vector loads instead of gathering it tet by tet (88 bytes per tet).
   std::vector<double> block_b_matrix;
   std::vector<std::int32_t> block_vertices;
+  // Single-precision copies for the float force loop (ForcePrecision::kFloat):
+  // B in the block_b_matrix layout; kFloatNeoHookeanRows rows of
+  // kTetBlockLanes per block of M = B B^T (M_00, M_11, M_22, M_01, M_02,
+  // M_12) and det B, which the neo-Hookean lane reads instead of B; V0 and the
+  // moduli per tet padded with zeros to whole blocks (80 bytes per tet).
+  std::vector<float> float_block_b_matrix;
+  std::vector<float> float_block_neo_hookean;
+  std::vector<float> float_ref_volume_m3, float_mu1_pa, float_mu2_pa, float_kappa_pa;
   bool neo_hookean = true;  // every mu2 == 0: the K-term work is skipped
   std::size_t num_vertices = 0;
   VolumetricTerm volumetric = VolumetricTerm::kPerTet;
@@ -61,7 +71,8 @@ struct ElasticBody {
   std::size_t num_tets() const { return ref_volume_m3.size(); }
 };
 
-// (Re)builds block_b_matrix and block_vertices from tets and b_matrix; for a
+// (Re)builds block_b_matrix, block_vertices and the float copies from tets,
+// b_matrix, ref_volume_m3 and the moduli; for a
 // body assembled by hand (make_elastic_body calls it). The force loop builds a
 // temporary copy of a body without them, which is slow.
 void build_lane_blocks(ElasticBody& body);
@@ -84,6 +95,21 @@ struct ElasticEvaluation {
 ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
                                      int threads = 0);
 
+// Arithmetic of the force loop. kDouble everywhere by default. kFloat (the
+// flow scenes' option, ShearFlowNumerics::elastic_single_precision): the
+// positions relative to the centre of their bounding box (so that F keeps its
+// digits wherever the body sits), the per-tet stages and the force sums per
+// vertex in float, 16 lanes to two AVX2 registers instead of four; energy
+// summed and forces returned in double. Forces agree with kDouble to
+// 1e-7 (kappa / mu) / strain of the largest vertex force, set by the bulk
+// term's J - 1 (tests/elastic/float_forces_test.cc: 2.7e-4 at strain 0.05,
+// nu 0.48; 2e-5 at large strain); the quasi-static solver keeps kDouble (its
+// Newton convergence needs the gradient to round-off). Every SIMD level gives
+// the same bits in either precision.
+enum class ForcePrecision { kDouble, kFloat };
+ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
+                                     int threads, ForcePrecision precision);
+
 // SIMD level of the force and energy loops (elastic_forces.cc): one copy per
 // level is built and the best the CPU has is used (kAuto). Every level gives
 // the same bits; the others exist for tests and benchmarks.
@@ -98,6 +124,11 @@ const char* tet_simd_name(TetSimd simd);
 ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
                                               double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
                                               TetSimd simd = TetSimd::kAuto);
+// As above in precision `precision` (kFloat: the float loop, positions
+// relative to the centre of their bounding box as add_elastic_forces does).
+ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
+                                              double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
+                                              TetSimd simd, ForcePrecision precision);
 
 // Energy only, same arithmetic as add_elastic_forces.
 ElasticEvaluation elastic_energy(const ElasticBody& body, const double* positions_m);

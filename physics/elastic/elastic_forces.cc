@@ -517,12 +517,478 @@ double forces_of_range(const ElasticBody& body, const double* y, double* forces,
   return energy;
 }
 
+// ---------------------------------------------------------------------------
+// The single-precision force loop (ForcePrecision::kFloat, the flow scenes'
+// option), over the same lane blocks of kLanes tets, run in chunks of one
+// register (4 lanes SSE2, 8 AVX2, 16 AVX-512; 8 AVX2 lanes instead of the
+// double loop's 4), reading the float copies of B, V0 and the moduli in
+// ElasticBody. Mooney-Rivlin: the stages of tet_kernel.h instantiated for
+// float (float_tet_lane); neo-Hookean: float_neo_hookean_lane, the same
+// forces with a quarter fewer products. The positions come as 4 floats per vertex
+// (x, y, z, 0), relative to the centre c of their bounding box: F = D B
+// needs only differences of positions, and |y - c| <= the body's half size
+// keeps D to float round-off of the edge (about 1e-7 of the cell's size);
+// the box offset of a flow cell would otherwise cost its digits. The forces
+// are summed per vertex in a padded float accumulator (4 floats per vertex)
+// and added to the caller's double forces at the end; the energy is summed
+// over lanes in double. Gather and scatter are 128-bit loads and 4x4
+// transposes (one corner of four tets per load or add), the same SSE code in
+// every level's copy; with no FMA contraction every level gives the same
+// bits here too.
+
+struct FloatTetBlock {
+  alignas(64) float y[12 * kLanes];       // y[kLanes (3 a + i) + lane] = y_i - c_i of local vertex a
+  alignas(64) float forces[12 * kLanes];  // forces[kLanes (3 a + i) + lane] = f_i of local vertex a
+  alignas(64) float energy[kLanes];       // V0 U of each lane
+  alignas(64) float det_f[kLanes];        // J of each lane
+};
+
+// The stages of one tet in a lane of the float loop: B (b), positions (y),
+// forces stride kLanes, the tensors in a TetStressLanes<1> local to the call
+// (registers once inlined and unrolled, not the block's memory). A local
+// declared in the omp simd loop itself would become an "omp simd array",
+// which GCC 12 does not vectorise; inside the inlined call it is plain.
+template <bool kMooneyRivlin>
+inline __attribute__((always_inline)) void float_tet_lane(const float* b, const float* y, float mu1,
+                                                          float mu2, float kappa, float pressure,
+                                                          float volume, float* det_f_out, float* energy_out,
+                                                          float* forces) {
+  kernel::TetStressLanes<1, float> s;
+  float bl[9];
+  for (int k = 0; k < 9; ++k) bl[k] = b[kLanes * k];
+  const float det_f = kernel::deformation_gradient<1, kLanes>(bl, y, y + 3 * kLanes, y + 6 * kLanes,
+                                                              y + 9 * kLanes, s.f, s.cof);
+  s.det_f[0] = det_f;
+  *det_f_out = det_f;
+  // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped by the caller.
+  const float j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
+  // The stress comes scaled by -V0 for the forces.
+  kernel::stress_from_gradient<kMooneyRivlin, 1, false, float>(mu1, mu2, kappa, j_m13, s, 0, pressure,
+                                                               -volume);
+  *energy_out = volume * s.energy_density[0];
+  float fl[12];
+  kernel::forces_from_scaled_stress<1>(bl, s.stress, fl);
+  for (int k = 0; k < 12; ++k) forces[kLanes * k] = fl[k];
+}
+
+// The neo-Hookean lane (w = 1, the flow scenes' default) with a quarter
+// fewer products than the stages of tet_kernel.h: with F = D B, M = B B^T
+// and cof(D B) = cof(D) cof(B), cof(B) B^T = det(B) 1 (nh: the rows of
+// ElasticBody::float_block_neo_hookean),
+//   f^a_i = -V0 P_il B_al = s_F (D M)_ia + s_cof det(B) cof(D)_ia   (paper eq. 9-10, a = 1..3),
+//   T_C = F:F = D:(D M), J = det(D) det(B)   (paper eq. 2-3),
+// so neither F nor cof(F) is formed (100 products a tet instead of 135).
+template <bool kNodal>
+inline __attribute__((always_inline)) void float_neo_hookean_lane(const float* nh, const float* y, float mu1,
+                                                                  float kappa, float pressure, float volume,
+                                                                  float* det_f_out, float* energy_out,
+                                                                  float* forces) {
+  // D_ik = y_i^k - y_i^4   (paper eq. 11)
+  float d[9];
+  for (int i = 0; i < 3; ++i) {
+    const float y4 = y[kLanes * (9 + i)];
+    for (int k = 0; k < 3; ++k) d[3 * i + k] = y[kLanes * (3 * k + i)] - y4;
+  }
+  const float m00 = nh[0], m11 = nh[kLanes], m22 = nh[kLanes * 2];
+  const float m01 = nh[kLanes * 3], m02 = nh[kLanes * 4], m12 = nh[kLanes * 5];
+  const float det_b = nh[kLanes * 6];
+  // G = D M = F B^T
+  float g[9];
+  for (int i = 0; i < 3; ++i) {
+    const float d0 = d[3 * i], d1 = d[3 * i + 1], d2 = d[3 * i + 2];
+    g[3 * i] = d0 * m00 + d1 * m01 + d2 * m02;
+    g[3 * i + 1] = d0 * m01 + d1 * m11 + d2 * m12;
+    g[3 * i + 2] = d0 * m02 + d1 * m12 + d2 * m22;
+  }
+  // T_C = tr C = F:F = D:G   (paper eq. 3-4)
+  float trace_c = 0.0f;
+  for (int k = 0; k < 9; ++k) trace_c += d[k] * g[k];
+  // cof(D)
+  float cd[9];
+  cd[0] = d[4] * d[8] - d[5] * d[7];
+  cd[1] = d[5] * d[6] - d[3] * d[8];
+  cd[2] = d[3] * d[7] - d[4] * d[6];
+  cd[3] = d[2] * d[7] - d[1] * d[8];
+  cd[4] = d[0] * d[8] - d[2] * d[6];
+  cd[5] = d[1] * d[6] - d[0] * d[7];
+  cd[6] = d[1] * d[5] - d[2] * d[4];
+  cd[7] = d[2] * d[3] - d[0] * d[5];
+  cd[8] = d[0] * d[4] - d[1] * d[3];
+  // J = det F = det(D) det(B)   (paper eq. 3), signed
+  const float det_f = (d[0] * cd[0] + d[1] * cd[1] + d[2] * cd[2]) * det_b;
+  *det_f_out = det_f;
+  // J^-1/3; an inverted lane (J <= 0) gets a harmless J = 1 and is skipped
+  // by the caller (std::max here would become a branch and stop the loop
+  // vectorising: measured 3.6 x slower).
+  const float j_m13 = kernel::inverse_cube_root(kernel::one_if_not_positive(det_f));
+  const float j_m23 = j_m13 * j_m13;
+  const float inv_det = j_m23 * j_m13;
+  const float jm1 = det_f - 1.0f;
+  // I = T_C J^-2/3; U = mu1/2 (I - 3) + kappa/2 (J - 1)^2   (paper eq. 3, 5)
+  const float inv_i = trace_c * j_m23;
+  const float twice_energy = kNodal ? mu1 * (inv_i - 3.0f) : mu1 * (inv_i - 3.0f) + kappa * jm1 * jm1;
+  *energy_out = volume * (0.5f * twice_energy);
+  // dU/dF = c_F F + c_cof cof(F): c_F = mu1 J^-2/3, c_cof = -mu1/3 T_C J^-5/3 + kappa (J - 1) + p
+  const float scaled_f = -volume * (mu1 * j_m23);
+  const float volumetric = kNodal ? pressure : kappa * jm1;
+  const float scaled_cof = -volume * (-(1.0f / 3.0f) * mu1 * inv_i * inv_det + volumetric) * det_b;
+  for (int i = 0; i < 3; ++i) {
+    const float f0 = scaled_f * g[3 * i] + scaled_cof * cd[3 * i];
+    const float f1 = scaled_f * g[3 * i + 1] + scaled_cof * cd[3 * i + 1];
+    const float f2 = scaled_f * g[3 * i + 2] + scaled_cof * cd[3 * i + 2];
+    forces[kLanes * i] = f0;
+    forces[kLanes * (3 + i)] = f1;
+    forces[kLanes * (6 + i)] = f2;
+    forces[kLanes * (9 + i)] = -(f0 + f1 + f2);
+  }
+}
+
+// The positions of the 4 vertices of the kLanes tets of a block from y4
+// (4 floats per vertex, 16-byte aligned) into the rows of FloatTetBlock::y:
+// per corner and 4 lanes, four 128-bit loads and a 4x4 transpose.
+inline __attribute__((always_inline)) void gather_float_positions(const float* y4,
+                                                                  const std::int32_t* vertices,
+                                                                  float* y_lanes) {
+#if defined(__x86_64__)
+  for (int a = 0; a < 4; ++a) {
+    for (int c = 0; c < kLanes; c += 4) {
+      const std::int32_t* v = vertices + kLanes * a + c;
+      const __m128 p0 = _mm_load_ps(y4 + 4 * static_cast<std::int64_t>(v[0]));
+      const __m128 p1 = _mm_load_ps(y4 + 4 * static_cast<std::int64_t>(v[1]));
+      const __m128 p2 = _mm_load_ps(y4 + 4 * static_cast<std::int64_t>(v[2]));
+      const __m128 p3 = _mm_load_ps(y4 + 4 * static_cast<std::int64_t>(v[3]));
+      const __m128 xy01 = _mm_unpacklo_ps(p0, p1);  // x0 x1 y0 y1
+      const __m128 xy23 = _mm_unpacklo_ps(p2, p3);  // x2 x3 y2 y3
+      const __m128 zw01 = _mm_unpackhi_ps(p0, p1);  // z0 z1 0 0
+      const __m128 zw23 = _mm_unpackhi_ps(p2, p3);  // z2 z3 0 0
+      _mm_store_ps(y_lanes + kLanes * (3 * a) + c, _mm_movelh_ps(xy01, xy23));
+      _mm_store_ps(y_lanes + kLanes * (3 * a + 1) + c, _mm_movehl_ps(xy23, xy01));
+      _mm_store_ps(y_lanes + kLanes * (3 * a + 2) + c, _mm_movelh_ps(zw01, zw23));
+    }
+  }
+#else
+  for (int a = 0; a < 4; ++a) {
+    for (int lane = 0; lane < kLanes; ++lane) {
+      const float* ya = y4 + 4 * static_cast<std::int64_t>(vertices[kLanes * a + lane]);
+      for (int i = 0; i < 3; ++i) y_lanes[kLanes * (3 * a + i) + lane] = ya[i];
+    }
+  }
+#endif
+}
+
+// The forces of a full block (FloatTetBlock::forces layout) added into the
+// float accumulator (acc[4 v + i], acc[4 v + 3] padding that receives zeros):
+// per corner and 4 lanes a 4x4 transpose into (f_x, f_y, f_z, 0), then one
+// 128-bit add per tet corner, lanes in order.
+inline __attribute__((always_inline)) void scatter_float_forces(const float* f_lanes,
+                                                                const std::int32_t* vertices, float* acc) {
+#if defined(__x86_64__)
+  const __m128 zero = _mm_setzero_ps();
+  for (int c = 0; c < kLanes; c += 4) {
+    for (int a = 0; a < 4; ++a) {
+      const __m128 x = _mm_load_ps(f_lanes + kLanes * (3 * a) + c);
+      const __m128 y = _mm_load_ps(f_lanes + kLanes * (3 * a + 1) + c);
+      const __m128 z = _mm_load_ps(f_lanes + kLanes * (3 * a + 2) + c);
+      const __m128 xy01 = _mm_unpacklo_ps(x, y);    // x0 y0 x1 y1
+      const __m128 xy23 = _mm_unpackhi_ps(x, y);    // x2 y2 x3 y3
+      const __m128 z01 = _mm_unpacklo_ps(z, zero);  // z0 0 z1 0
+      const __m128 z23 = _mm_unpackhi_ps(z, zero);  // z2 0 z3 0
+      const __m128 corner[4] = {_mm_movelh_ps(xy01, z01), _mm_movehl_ps(z01, xy01), _mm_movelh_ps(xy23, z23),
+                                _mm_movehl_ps(z23, xy23)};
+      const std::int32_t* v = vertices + kLanes * a + c;
+      for (int l = 0; l < 4; ++l) {
+        float* out = acc + 4 * static_cast<std::int64_t>(v[l]);
+        _mm_store_ps(out, _mm_add_ps(_mm_load_ps(out), corner[l]));
+      }
+    }
+  }
+#else
+  for (int c = 0; c < kLanes; c += 4) {
+    for (int a = 0; a < 4; ++a) {
+      for (int l = 0; l < 4; ++l) {
+        float* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + c + l]);
+        for (int i = 0; i < 3; ++i) out[i] += f_lanes[kLanes * (3 * a + i) + c + l];
+      }
+    }
+  }
+#endif
+}
+
+// Energy and forces (into the float accumulator acc) of tets [begin, end) in
+// float; as evaluate_range_body otherwise. tet_pressure (kNodalAverage) in
+// float too.
+template <bool kMooneyRivlin, bool kNodal, int kChunk>
+inline __attribute__((always_inline)) double evaluate_float_range_body(const ElasticBody& body,
+                                                                       const float* y4, float* acc,
+                                                                       std::int64_t begin, std::int64_t end,
+                                                                       std::int64_t& first_inverted,
+                                                                       const float* tet_pressure) {
+  const float* block_b = body.float_block_b_matrix.data();
+  const std::int32_t* block_vertices = body.block_vertices.data();
+  const float* volume = body.float_ref_volume_m3.data();
+  const float* mu1 = body.float_mu1_pa.data();
+  const float* mu2 = body.float_mu2_pa.data();
+  const float* kappa = body.float_kappa_pa.data();
+  // kNodal (tet_pressure given): no kappa term, the pressure instead; one
+  // copy each, so that neither costs a product in the lane loop.
+  const float* pressure = kNodal ? tet_pressure : kappa;
+  FloatTetBlock blk;
+  double energy = 0.0;
+  for (std::int64_t block = begin / kLanes; block * kLanes < end; ++block) {
+    const std::int64_t first = block * kLanes;
+    const int lane_begin = static_cast<int>(std::max<std::int64_t>(0, begin - first));
+    const int lane_end = static_cast<int>(std::min<std::int64_t>(kLanes, end - first));
+    const float* b = block_b + 9 * kLanes * block;
+    const float* nh = body.float_block_neo_hookean.data() + kFloatNeoHookeanRows * kLanes * block;
+    const std::int32_t* v0 = block_vertices + 4 * kLanes * block;
+    gather_float_positions(y4, v0, blk.y);
+    const float* volume_b = volume + first;
+    const float* mu1_b = mu1 + first;
+    const float* mu2_b = mu2 + first;
+    const float* kappa_b = kappa + first;
+    const float* pressure_b = pressure + first;
+    const auto run_lanes = [&](int lo, int hi) __attribute__((always_inline)) {
+#pragma omp simd
+      for (int lane = lo; lane < hi; ++lane) {
+        const float kappa_l = kNodal ? 0.0f : kappa_b[lane];
+        const float pressure_l = kNodal ? pressure_b[lane] : 0.0f;
+        if constexpr (kMooneyRivlin) {
+          float_tet_lane<kMooneyRivlin>(b + lane, blk.y + lane, mu1_b[lane], mu2_b[lane], kappa_l, pressure_l,
+                                        volume_b[lane], blk.det_f + lane, blk.energy + lane,
+                                        blk.forces + lane);
+        } else {
+          float_neo_hookean_lane<kNodal>(nh + lane, blk.y + lane, mu1_b[lane], kappa_l, pressure_l,
+                                         volume_b[lane], blk.det_f + lane, blk.energy + lane,
+                                         blk.forces + lane);
+        }
+      }
+    };
+    // Chunks of kChunk lanes (one register a value: kChunk = the level's
+    // float width), one after the other, so that the values of one chunk fit
+    // the register file.
+    if (lane_begin == 0 && lane_end == kLanes) {
+#pragma GCC unroll 1
+      for (int c = 0; c < kLanes; c += kChunk) run_lanes(c, c + kChunk);
+    } else {
+      run_lanes(lane_begin, lane_end);
+    }
+    bool any_inverted = false;
+    for (int lane = 0; lane < kLanes; ++lane) any_inverted |= blk.det_f[lane] <= 0.0f;
+    if (lane_begin == 0 && lane_end == kLanes && !any_inverted) {
+#pragma GCC unroll 16
+      for (int lane = 0; lane < kLanes; ++lane) energy += static_cast<double>(blk.energy[lane]);
+      scatter_float_forces(blk.forces, v0, acc);
+    } else {
+      for (int lane = lane_begin; lane < lane_end; ++lane) {
+        if (blk.det_f[lane] <= 0.0f) {
+          first_inverted = std::min(first_inverted, first + lane);
+          continue;
+        }
+        energy += static_cast<double>(blk.energy[lane]);
+        for (int a = 0; a < 4; ++a) {
+          float* out = acc + 4 * static_cast<std::int64_t>(v0[kLanes * a + lane]);
+          for (int i = 0; i < 3; ++i) out[i] += blk.forces[kLanes * (3 * a + i) + lane];
+        }
+      }
+    }
+  }
+  return energy;
+}
+
+template <bool kMooneyRivlin, bool kNodal>
+double evaluate_float_range_generic(const ElasticBody& body, const float* y4, float* acc, std::int64_t begin,
+                                    std::int64_t end, std::int64_t& first_inverted,
+                                    const float* tet_pressure) {
+  return evaluate_float_range_body<kMooneyRivlin, kNodal, 4>(body, y4, acc, begin, end, first_inverted,
+                                                             tet_pressure);
+}
+#if defined(__x86_64__)
+template <bool kMooneyRivlin, bool kNodal>
+__attribute__((target("avx2"))) double evaluate_float_range_avx2(const ElasticBody& body, const float* y4,
+                                                                 float* acc, std::int64_t begin,
+                                                                 std::int64_t end,
+                                                                 std::int64_t& first_inverted,
+                                                                 const float* tet_pressure) {
+  return evaluate_float_range_body<kMooneyRivlin, kNodal, 8>(body, y4, acc, begin, end, first_inverted,
+                                                             tet_pressure);
+}
+template <bool kMooneyRivlin, bool kNodal>
+__attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) double evaluate_float_range_avx512(
+    const ElasticBody& body, const float* y4, float* acc, std::int64_t begin, std::int64_t end,
+    std::int64_t& first_inverted, const float* tet_pressure) {
+  return evaluate_float_range_body<kMooneyRivlin, kNodal, 16>(body, y4, acc, begin, end, first_inverted,
+                                                              tet_pressure);
+}
+#endif
+
+template <bool kMooneyRivlin, bool kNodal>
+double evaluate_float_range_level(const ElasticBody& body, const float* y4, float* acc, std::int64_t begin,
+                                  std::int64_t end, std::int64_t& first_inverted, const float* tet_pressure,
+                                  TetSimd simd) {
+  switch (resolve_tet_simd(simd)) {
+#if defined(__x86_64__)
+    case TetSimd::kAvx512:
+      return evaluate_float_range_avx512<kMooneyRivlin, kNodal>(body, y4, acc, begin, end, first_inverted,
+                                                                tet_pressure);
+    case TetSimd::kAvx2:
+      return evaluate_float_range_avx2<kMooneyRivlin, kNodal>(body, y4, acc, begin, end, first_inverted,
+                                                              tet_pressure);
+#endif
+    default:
+      return evaluate_float_range_generic<kMooneyRivlin, kNodal>(body, y4, acc, begin, end, first_inverted,
+                                                                 tet_pressure);
+  }
+}
+
+template <bool kMooneyRivlin>
+double evaluate_float_range(const ElasticBody& body, const float* y4, float* acc, std::int64_t begin,
+                            std::int64_t end, std::int64_t& first_inverted, const float* tet_pressure,
+                            TetSimd simd) {
+  if (tet_pressure != nullptr) {
+    return evaluate_float_range_level<kMooneyRivlin, true>(body, y4, acc, begin, end, first_inverted,
+                                                           tet_pressure, simd);
+  }
+  return evaluate_float_range_level<kMooneyRivlin, false>(body, y4, acc, begin, end, first_inverted, nullptr,
+                                                          simd);
+}
+
+// 4 floats per vertex of the calling thread, 32-byte aligned, kept and
+// reused (no allocation per call once sized): the float positions and the
+// float force accumulators.
+float* float_vertex_buffer(std::vector<float>& storage, std::size_t num_vertices) {
+  if (storage.size() < 4 * num_vertices + 8) storage.resize(4 * num_vertices + 8);
+  const std::uintptr_t address = reinterpret_cast<std::uintptr_t>(storage.data());
+  return storage.data() + (32 - address % 32) % 32 / sizeof(float);
+}
+
+// y4 = (y - c, 0) in float, c the centre of the bounding box of y.
+void float_positions(const double* y, std::size_t num_vertices, float* y4) {
+  double lo[3] = {0.0, 0.0, 0.0}, hi[3] = {0.0, 0.0, 0.0};
+  if (num_vertices > 0) {
+    for (int i = 0; i < 3; ++i) lo[i] = hi[i] = y[i];
+  }
+  for (std::size_t v = 1; v < num_vertices; ++v) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], y[3 * v + i]);
+      hi[i] = std::max(hi[i], y[3 * v + i]);
+    }
+  }
+  const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+  for (std::size_t v = 0; v < num_vertices; ++v) {
+    for (int i = 0; i < 3; ++i) y4[4 * v + i] = static_cast<float>(y[3 * v + i] - c[i]);
+    y4[4 * v + 3] = 0.0f;
+  }
+}
+
+// A body without its float copies (assembled by hand) gets a blocked copy.
+bool has_float_blocks(const ElasticBody& body) {
+  const std::size_t num_blocks = (body.num_tets() + kLanes - 1) / kLanes;
+  return body.float_block_b_matrix.size() == 9 * kLanes * num_blocks &&
+         body.float_block_neo_hookean.size() == kFloatNeoHookeanRows * kLanes * num_blocks &&
+         body.block_vertices.size() == 4 * kLanes * num_blocks &&
+         body.float_ref_volume_m3.size() == kLanes * num_blocks &&
+         body.float_mu1_pa.size() == kLanes * num_blocks && body.float_mu2_pa.size() == kLanes * num_blocks &&
+         body.float_kappa_pa.size() == kLanes * num_blocks;
+}
+
+// kFloat forces of tets [begin, end) split over `team` threads as evaluate
+// does: each thread sums into its own float accumulator (from zero), and
+// forces_n += the accumulators (in double, thread after thread).
+template <bool kMooneyRivlin>
+ElasticEvaluation evaluate_float(const ElasticBody& body, const double* y, double* forces, std::int64_t begin,
+                                 std::int64_t end, int team, TetSimd simd) {
+  if (!has_float_blocks(body)) {
+    ElasticBody blocked = body;
+    build_lane_blocks(blocked);
+    return evaluate_float<kMooneyRivlin>(blocked, y, forces, begin, end, team, simd);
+  }
+  const std::size_t num_vertices = body.num_vertices;
+  ElasticEvaluation result;
+  std::int64_t first_inverted = kNoTet;
+  std::vector<double> pressure;
+  thread_local std::vector<float> float_pressure;
+  const float* tet_pressure = nullptr;
+  if (body.volumetric == VolumetricTerm::kNodalAverage) {
+    result.energy_j = volumetric_pressures(body, y, team, pressure);
+    float_pressure.assign(pressure.begin(), pressure.end());
+    float_pressure.resize(kLanes * ((body.num_tets() + kLanes - 1) / kLanes), 0.0f);
+    tet_pressure = float_pressure.data();
+  }
+  thread_local std::vector<float> position_storage;
+  float* y4 = float_vertex_buffer(position_storage, num_vertices);
+  float_positions(y, num_vertices, y4);
+  if (team == 1) {
+    thread_local std::vector<float> acc_storage;
+    float* acc = float_vertex_buffer(acc_storage, num_vertices);
+    std::fill(acc, acc + 4 * num_vertices, 0.0f);
+    result.energy_j +=
+        evaluate_float_range<kMooneyRivlin>(body, y4, acc, begin, end, first_inverted, tet_pressure, simd);
+    for (std::size_t v = 0; v < num_vertices; ++v) {
+      for (int i = 0; i < 3; ++i) forces[3 * v + i] += static_cast<double>(acc[4 * v + i]);
+    }
+  } else {
+    thread_local std::vector<const float*> accumulator_list;
+    accumulator_list.assign(static_cast<std::size_t>(team), nullptr);
+    const float** accumulators = accumulator_list.data();
+    const std::int64_t count = end - begin;
+    const std::int64_t nv = static_cast<std::int64_t>(num_vertices);
+    double energy = 0.0;
+#pragma omp parallel num_threads(team) reduction(+ : energy) reduction(min : first_inverted)
+    {
+      const int rank = omp_get_thread_num();
+      const int size = omp_get_num_threads();
+      const std::int64_t lo = begin + count * rank / size;
+      const std::int64_t hi = begin + count * (rank + 1) / size;
+      thread_local std::vector<float> acc_storage;
+      float* acc = float_vertex_buffer(acc_storage, num_vertices);
+      std::fill(acc, acc + 4 * num_vertices, 0.0f);
+      accumulators[rank] = acc;
+      energy = evaluate_float_range<kMooneyRivlin>(body, y4, acc, lo, hi, first_inverted, tet_pressure, simd);
+#pragma omp barrier
+#pragma omp for schedule(static)
+      for (std::int64_t v = 0; v < nv; ++v) {
+        for (int i = 0; i < 3; ++i) {
+          double sum = forces[3 * v + i];
+          for (int r = 0; r < size; ++r) sum += static_cast<double>(accumulators[r][4 * v + i]);
+          forces[3 * v + i] = sum;
+        }
+      }
+    }
+    result.energy_j += energy;
+  }
+  result.first_inverted_tet = first_inverted == kNoTet ? -1 : first_inverted;
+  return result;
+}
+
 }  // namespace
 
 ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
                                      int threads) {
   if (body.neo_hookean) return evaluate<false, true>(body, positions_m, forces_n, threads);
   return evaluate<true, true>(body, positions_m, forces_n, threads);
+}
+
+ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
+                                     int threads, ForcePrecision precision) {
+  if (precision == ForcePrecision::kDouble) return add_elastic_forces(body, positions_m, forces_n, threads);
+  const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
+  const int team = team_size(threads, num_tets, kMinForceTetsPerThread);
+  if (body.neo_hookean) {
+    return evaluate_float<false>(body, positions_m, forces_n, 0, num_tets, team, TetSimd::kAuto);
+  }
+  return evaluate_float<true>(body, positions_m, forces_n, 0, num_tets, team, TetSimd::kAuto);
+}
+
+ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
+                                              double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
+                                              TetSimd simd, ForcePrecision precision) {
+  if (precision == ForcePrecision::kDouble) {
+    return add_elastic_forces_of_range(body, positions_m, forces_n, begin_tet, end_tet, simd);
+  }
+  // kNodalAverage: as the double range, the whole volumetric energy and the range's isochoric part.
+  if (body.neo_hookean)
+    return evaluate_float<false>(body, positions_m, forces_n, begin_tet, end_tet, 1, simd);
+  return evaluate_float<true>(body, positions_m, forces_n, begin_tet, end_tet, 1, simd);
 }
 
 ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,

@@ -11,7 +11,11 @@
 // deformed edge matrix D_ik = y_i^k - y_i^4 (k = 1..3) the deformation gradient
 // is F = 1 + A B = D B, because A = D - J and J B = 1 (paper eq. 11-12).
 //
-// All 3x3 tensors are row-major double[9]: T[3 * i + l] = T_il.
+// All 3x3 tensors are row-major T[9]: T[3 * i + l] = T_il. The stages of the
+// force loop are templates on the floating-point type T: double everywhere,
+// float for the single-precision force loop of the flow scenes
+// (ForcePrecision::kFloat, elastic_body.h). Every constant is written as T(c),
+// so the double instances are the arithmetic they were before.
 #pragma once
 
 #include <bit>
@@ -37,14 +41,36 @@ inline __attribute__((always_inline)) double inverse_cube_root(double x) {
   return y - y * d * (1.0 / 3.0 - d * (2.0 / 9.0));
 }
 
+// The float x^-1/3 of the single-precision force loop, the same scheme on
+// the 32-bit pattern (initial guess within 3.4 %, the double constant with
+// three more mantissa bits): after the two steps within 2 ulp of float
+// (tests/elastic/float_forces_test.cc). The products and the series are
+// grouped for a short dependency chain (x y and y^2 side by side, the
+// series in Estrin's form): in the float loop one chain spans the 8 lanes
+// of an AVX2 register, and its latency, not the throughput, bounds the stage.
+inline __attribute__((always_inline)) float inverse_cube_root(float x) {
+  // bits / 3 through float (bits < 2^31, the quotient within 2^7 of the
+  // integer one: 2e-5 of the guess, against its 3.4 %): a conversion and a
+  // product instead of the integer division's multiply-high sequence.
+  const std::int32_t bits = std::bit_cast<std::int32_t>(x);
+  const std::int32_t third = static_cast<std::int32_t>(static_cast<float>(bits) * (1.0f / 3.0f));
+  float y = std::bit_cast<float>(0x54a22fab - third);
+  float d = (x * y) * (y * y) - 1.0f;
+  const float d2 = d * d;
+  y *= (1.0f - (1.0f / 3.0f) * d) + d2 * ((2.0f / 9.0f - (14.0f / 81.0f) * d) + d2 * (35.0f / 243.0f));
+  d = (x * y) * (y * y) - 1.0f;
+  return y - (y * d) * (1.0f / 3.0f - d * (2.0f / 9.0f));
+}
+
 // x for x > 0, and (to round-off) 1 for x <= 0; NaN stays NaN: the argument
 // of inverse_cube_root for a lane that may hold an inverted tet, whose result
 // is discarded. Arithmetic rather than a select: GCC turns the select into a
 // branch, and the bit-mask blend has no SSE2 form, either of which stops the
 // lane loop of elastic_forces.cc from vectorising. For x > 0 the added term
 // is a signed zero, so x comes back exactly.
-inline __attribute__((always_inline)) double one_if_not_positive(double x) {
-  return x + static_cast<double>(x <= 0.0) * (1.0 - x);
+template <class T>
+inline __attribute__((always_inline)) T one_if_not_positive(T x) {
+  return x + static_cast<T>(x <= T(0)) * (T(1) - x);
 }
 
 // Per-tet material and geometry, read from an ElasticBody.
@@ -63,22 +89,22 @@ struct TetParams {
 // [kLanes * k + l]). The tangent uses one lane (TetStress); the force loop
 // (elastic_forces.cc) a block of lanes, so that its lane loop over the stages
 // below vectorises across tets.
-template <int kLanes>
+template <int kLanes, class T = double>
 struct TetStressLanes {
-  // Cache-line rows for a lane block; one tet keeps the plain double layout.
-  static constexpr std::size_t kAlign = kLanes > 1 ? 64 : alignof(double);
-  alignas(kAlign) double f[9 * kLanes];        // deformation gradient F
-  alignas(kAlign) double cof[9 * kLanes];      // cofactor J F^-T = dJ/dF
-  alignas(kAlign) double fc[9 * kLanes];       // F C with C = F^T F (Mooney-Rivlin only)
-  alignas(kAlign) double c[9 * kLanes];        // C = F^T F (Mooney-Rivlin only)
-  alignas(kAlign) double stress[9 * kLanes];   // nominal stress P = dU/dF
-  alignas(kAlign) double det_f[kLanes];        // J = det F
-  alignas(kAlign) double inv_det[kLanes];      // 1 / J
-  alignas(kAlign) double j_m23[kLanes];        // J^-2/3
-  alignas(kAlign) double j_m43[kLanes];        // J^-4/3
-  alignas(kAlign) double trace_c[kLanes];      // tr C
-  alignas(kAlign) double k_numerator[kLanes];  // ((tr C)^2 - tr C^2) / 2
-  alignas(kAlign) double energy_density[kLanes];
+  // Cache-line rows for a lane block; one tet keeps the plain layout.
+  static constexpr std::size_t kAlign = kLanes > 1 ? 64 : alignof(T);
+  alignas(kAlign) T f[9 * kLanes];        // deformation gradient F
+  alignas(kAlign) T cof[9 * kLanes];      // cofactor J F^-T = dJ/dF
+  alignas(kAlign) T fc[9 * kLanes];       // F C with C = F^T F (Mooney-Rivlin only)
+  alignas(kAlign) T c[9 * kLanes];        // C = F^T F (Mooney-Rivlin only)
+  alignas(kAlign) T stress[9 * kLanes];   // nominal stress P = dU/dF
+  alignas(kAlign) T det_f[kLanes];        // J = det F
+  alignas(kAlign) T inv_det[kLanes];      // 1 / J
+  alignas(kAlign) T j_m23[kLanes];        // J^-2/3
+  alignas(kAlign) T j_m43[kLanes];        // J^-4/3
+  alignas(kAlign) T trace_c[kLanes];      // tr C
+  alignas(kAlign) T k_numerator[kLanes];  // ((tr C)^2 - tr C^2) / 2
+  alignas(kAlign) T energy_density[kLanes];
 };
 using TetStress = TetStressLanes<1>;
 
@@ -86,18 +112,17 @@ using TetStress = TetStressLanes<1>;
 // b, f and cof are read with stride S (S = kLanes of a lane block, 1 for one
 // tet), the positions with stride SY (default S): b[S k] = B_k,
 // y0[SY i] = y_i^1, f[S k] = F_k.
-template <int S = 1, int SY = S>
-inline __attribute__((always_inline)) double deformation_gradient(const double* b, const double* y0,
-                                                                  const double* y1, const double* y2,
-                                                                  const double* y3, double* f, double* cof) {
+template <int S = 1, int SY = S, class T>
+inline __attribute__((always_inline)) T deformation_gradient(const T* b, const T* y0, const T* y1,
+                                                             const T* y2, const T* y3, T* f, T* cof) {
   // D_ik = y_i^k - y_i^4   (paper eq. 11, positions instead of displacements since J B = 1)
-  double d[9];
+  T d[9];
   for (int i = 0; i < 3; ++i) {
     d[3 * i + 0] = y0[SY * i] - y3[SY * i];
     d[3 * i + 1] = y1[SY * i] - y3[SY * i];
     d[3 * i + 2] = y2[SY * i] - y3[SY * i];
   }
-  double fl[9];
+  T fl[9];
   // F_il = D_ik B_kl   (paper eq. 2 and 11-12)
   for (int i = 0; i < 3; ++i) {
     for (int l = 0; l < 3; ++l) {
@@ -105,7 +130,7 @@ inline __attribute__((always_inline)) double deformation_gradient(const double* 
     }
   }
   // cof(F) = dJ/dF = J F^-T   (derivative table, paper section 3.2)
-  double cl[9];
+  T cl[9];
   cl[0] = fl[4] * fl[8] - fl[5] * fl[7];
   cl[1] = fl[5] * fl[6] - fl[3] * fl[8];
   cl[2] = fl[3] * fl[7] - fl[4] * fl[6];
@@ -132,24 +157,23 @@ inline __attribute__((always_inline)) double deformation_gradient(const double* 
 // of nine there. kTangentData false (the force loop) skips storing what only
 // stress_derivative reads (c, fc and the scalars other than det_f and
 // energy_density) and computing F C, which the stress does not need.
-template <bool kMooneyRivlin, int S, bool kTangentData = true>
-inline __attribute__((always_inline)) void stress_from_gradient(double mu1, double mu2, double kappa,
-                                                                double j_m13, TetStressLanes<S>& s, int lane,
-                                                                double pressure = 0.0,
-                                                                double stress_scale = 1.0) {
-  const double* f = s.f + lane;
-  const double* cof = s.cof + lane;
-  const double det_f = s.det_f[lane];
+template <bool kMooneyRivlin, int S, bool kTangentData = true, class T = double>
+inline __attribute__((always_inline)) void stress_from_gradient(T mu1, T mu2, T kappa, T j_m13,
+                                                                TetStressLanes<S, T>& s, int lane,
+                                                                T pressure = T(0), T stress_scale = T(1)) {
+  const T* f = s.f + lane;
+  const T* cof = s.cof + lane;
+  const T det_f = s.det_f[lane];
   // J^-2/3 and 1/J as products of J^-1/3: no pow(), no division
-  const double j_m23 = j_m13 * j_m13;
-  const double inv_det = j_m23 * j_m13;
+  const T j_m23 = j_m13 * j_m13;
+  const T inv_det = j_m23 * j_m13;
   if constexpr (kTangentData) {
     s.inv_det[lane] = inv_det;
     s.j_m23[lane] = j_m23;
   }
   // C = F^T F (symmetric: six products; Mooney-Rivlin only)
-  double c[9];
-  double trace_c;
+  T c[9];
+  T trace_c;
   if constexpr (kMooneyRivlin) {
     c[0] = f[0] * f[0] + f[S * 3] * f[S * 3] + f[S * 6] * f[S * 6];
     c[4] = f[S * 1] * f[S * 1] + f[S * 4] * f[S * 4] + f[S * 7] * f[S * 7];
@@ -161,42 +185,42 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
     trace_c = c[0] + c[4] + c[8];
   } else {
     // T_C = tr C = F_il F_il   (paper eq. 3-4)
-    trace_c = 0.0;
+    trace_c = T(0);
     for (int k = 0; k < 9; ++k) trace_c += f[S * k] * f[S * k];
   }
   if constexpr (kTangentData) s.trace_c[lane] = trace_c;
-  const double jm1 = det_f - 1.0;
+  const T jm1 = det_f - T(1);
   // I = T_C J^-2/3   (paper eq. 3)
-  const double inv_i = trace_c * j_m23;
+  const T inv_i = trace_c * j_m23;
   // U = mu1/2 (I - 3) + mu2/2 (K - 3) + kappa/2 (J - 1)^2   (paper eq. 5)
   // (twice U here: the factor 1/2 is applied once at the end)
-  double energy = mu1 * (inv_i - 3.0) + kappa * jm1 * jm1;
+  T energy = mu1 * (inv_i - T(3)) + kappa * jm1 * jm1;
   // dU/dF = c_F F + c_FC F C + c_cof cof(F), from the derivative table (paper section 3.2):
   // c_F = mu1 J^-2/3 + mu2 T_C J^-4/3, c_FC = -mu2 J^-4/3,
   // c_cof = -mu1/3 T_C J^-5/3 - 2/3 mu2 K' J^-7/3 + kappa (J - 1), K' = (T_C^2 - T_C2) / 2
-  double coef_f = mu1 * j_m23;
-  double coef_cof = -(1.0 / 3.0) * mu1 * inv_i * inv_det + kappa * jm1 + pressure;
-  double* stress = s.stress + lane;
+  T coef_f = mu1 * j_m23;
+  T coef_cof = -T(1.0 / 3.0) * mu1 * inv_i * inv_det + kappa * jm1 + pressure;
+  T* stress = s.stress + lane;
   if constexpr (kMooneyRivlin) {
-    const double j_m43 = j_m23 * j_m23;
+    const T j_m43 = j_m23 * j_m23;
     if constexpr (kTangentData) {
       s.j_m43[lane] = j_m43;
       for (int k = 0; k < 9; ++k) s.c[S * k + lane] = c[k];
     }
     // K' = (T_C^2 - T_C2) / 2 with T_C2 = tr C^2 (paper eq. 3-4) is the second
     // invariant of C, the sum of its principal 2x2 minors (six products).
-    const double k_numerator =
+    const T k_numerator =
         (c[0] * c[4] - c[1] * c[1]) + (c[0] * c[8] - c[2] * c[2]) + (c[4] * c[8] - c[5] * c[5]);
     if constexpr (kTangentData) s.k_numerator[lane] = k_numerator;
     // K = K' J^-4/3   (paper eq. 3)
-    const double inv_k = k_numerator * j_m43;
-    energy += mu2 * (inv_k - 3.0);
+    const T inv_k = k_numerator * j_m43;
+    energy += mu2 * (inv_k - T(3));
     coef_f += mu2 * trace_c * j_m43;
-    coef_cof -= (2.0 / 3.0) * mu2 * inv_k * inv_det;
-    const double coef_fc = -mu2 * j_m43;
+    coef_cof -= T(2.0 / 3.0) * mu2 * inv_k * inv_det;
+    const T coef_fc = -mu2 * j_m43;
     if constexpr (kTangentData) {
       // (F C)_il = F_im C_ml
-      double* fc = s.fc + lane;
+      T* fc = s.fc + lane;
       for (int i = 0; i < 3; ++i) {
         for (int l = 0; l < 3; ++l) {
           fc[S * (3 * i + l)] =
@@ -206,10 +230,10 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
     }
     // c_F F + c_FC F C = F M with the symmetric M = c_F 1 + c_FC C: 9 products
     // and 3 sums for M, then 45 for F M, instead of 45 for F C and 45 for the sum.
-    const double scaled_f = stress_scale * coef_f;
-    const double scaled_fc = stress_scale * coef_fc;
-    const double scaled_cof = stress_scale * coef_cof;
-    double m[9];
+    const T scaled_f = stress_scale * coef_f;
+    const T scaled_fc = stress_scale * coef_fc;
+    const T scaled_cof = stress_scale * coef_cof;
+    T m[9];
     m[0] = scaled_f + scaled_fc * c[0];
     m[4] = scaled_f + scaled_fc * c[4];
     m[8] = scaled_f + scaled_fc * c[8];
@@ -224,11 +248,11 @@ inline __attribute__((always_inline)) void stress_from_gradient(double mu1, doub
       }
     }
   } else {
-    const double scaled_f = stress_scale * coef_f;
-    const double scaled_cof = stress_scale * coef_cof;
+    const T scaled_f = stress_scale * coef_f;
+    const T scaled_cof = stress_scale * coef_cof;
     for (int k = 0; k < 9; ++k) stress[S * k] = scaled_f * f[S * k] + scaled_cof * cof[S * k];
   }
-  s.energy_density[lane] = 0.5 * energy;
+  s.energy_density[lane] = T(0.5) * energy;
 }
 
 // All stages for one tet. Returns false for J <= 0 (inverted or flat element):
@@ -269,17 +293,16 @@ inline __attribute__((always_inline)) void forces_from_stress(const double* b, d
 
 // As forces_from_stress, from a stress already scaled by -V0
 // (stress_from_gradient with stress_scale = -V0): f_i^a = (-V0 P)_il B_al.
-template <int S = 1>
-inline __attribute__((always_inline)) void forces_from_scaled_stress(const double* b,
-                                                                     const double* scaled_stress,
-                                                                     double* forces) {
+template <int S = 1, class T>
+inline __attribute__((always_inline)) void forces_from_scaled_stress(const T* b, const T* scaled_stress,
+                                                                     T* forces) {
   for (int i = 0; i < 3; ++i) {
-    const double p0 = scaled_stress[S * 3 * i];
-    const double p1 = scaled_stress[S * (3 * i + 1)];
-    const double p2 = scaled_stress[S * (3 * i + 2)];
-    const double fa0 = p0 * b[0] + p1 * b[S * 1] + p2 * b[S * 2];
-    const double fa1 = p0 * b[S * 3] + p1 * b[S * 4] + p2 * b[S * 5];
-    const double fa2 = p0 * b[S * 6] + p1 * b[S * 7] + p2 * b[S * 8];
+    const T p0 = scaled_stress[S * 3 * i];
+    const T p1 = scaled_stress[S * (3 * i + 1)];
+    const T p2 = scaled_stress[S * (3 * i + 2)];
+    const T fa0 = p0 * b[0] + p1 * b[S * 1] + p2 * b[S * 2];
+    const T fa1 = p0 * b[S * 3] + p1 * b[S * 4] + p2 * b[S * 5];
+    const T fa2 = p0 * b[S * 6] + p1 * b[S * 7] + p2 * b[S * 8];
     forces[S * i] = fa0;
     forces[S * (3 + i)] = fa1;
     forces[S * (6 + i)] = fa2;

@@ -41,6 +41,7 @@ TEST(ShearFlowSpec, DefaultsOfUnsetFields) {
   EXPECT_DOUBLE_EQ(p->numerics.target_reynolds_number, defaults.numerics.target_reynolds_number);
   EXPECT_EQ(p->numerics.ibm_kernel, ibm::Kernel::kPeskin4);
   EXPECT_EQ(p->numerics.single_precision, defaults.numerics.single_precision);
+  EXPECT_TRUE(p->numerics.elastic_single_precision);
   EXPECT_DOUBLE_EQ(p->numerics.max_strain, defaults.numerics.max_strain);
   EXPECT_EQ(p->numerics.volumetric, elastic::VolumetricTerm::kPerTet);
   EXPECT_EQ(p->numerics.boundaries, scenes::ShearFlowBoundaries::kWalls);
@@ -76,6 +77,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   n->set_steady_window_strain(3.0);
   n->set_ibm_kernel("peskin3");
   n->set_single_precision(false);
+  n->set_elastic_single_precision(false);
   n->set_sample_every_strain(0.2);
   n->set_snapshot_every_strain(0.5);
   n->set_fluid_snapshots(true);
@@ -109,6 +111,7 @@ TEST(ShearFlowSpec, MapsEverySetField) {
   EXPECT_DOUBLE_EQ(m.steady_window_strain, 3.0);
   EXPECT_EQ(m.ibm_kernel, ibm::Kernel::kPeskin3);
   EXPECT_FALSE(m.single_precision);
+  EXPECT_FALSE(m.elastic_single_precision);
   EXPECT_DOUBLE_EQ(m.sample_every_strain, 0.2);
   EXPECT_DOUBLE_EQ(m.snapshot_every_strain, 0.5);
   EXPECT_TRUE(m.fluid_snapshots);

@@ -489,6 +489,8 @@ ShearFlowResult run_attempt(const PlannedShearFlow& planned, const ShearFlowCall
   // Vertices at the box centre (lattice units).
   const double centre[3] = {0.5 * setup.nx, 0.5 * setup.ny, 0.5 * setup.nz};
   coupling::ImmersedCell& immersed = coupling::add_cell(run.cells, run.mesh, run.body, u, centre);
+  immersed.elastic_precision =
+      n.elastic_single_precision ? elastic::ForcePrecision::kFloat : elastic::ForcePrecision::kDouble;
   // s = 1 - offset dx / R (numerics.hydrodynamic_radius_offset).
   immersed.marker_scale = 1.0 - radius_offset(n) * u.dx_m() / radius;
   run.x_si.resize(3 * nv);

@@ -104,6 +104,11 @@ struct ShearFlowNumerics {
   double target_reynolds_number = 0.1;
   ibm::Kernel ibm_kernel = ibm::Kernel::kPeskin4;
   bool single_precision = true;  // float lattice storage (populations as deviations from rest)
+  // The elastic forces in float (elastic::ForcePrecision::kFloat; positions
+  // relative to the cell's centre, the sums in float, returned in double):
+  // faster per core, D and the inclination as with double to far below the
+  // accuracy budget (README, elastic kernel rows: the measured figures).
+  bool elastic_single_precision = true;
   // Steady state on the drift of window means: the mean D over the last
   // steady_window_strain strain units (gammadot t) and the mean over the
   // window before it differ by less than steady_tolerance relative to the

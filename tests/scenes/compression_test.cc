@@ -133,7 +133,9 @@ TEST(Compression, AugmentedLagrangianBoundsTheGapAtEveryPoint) {
     EXPECT_LE(a.curve[i].max_penetration_m, kDefaultGapToleranceRadii * kRadius) << "point " << i;
     EXPECT_LE(a.curve[i].gap_error_m, kDefaultGapToleranceRadii * kRadius) << "point " << i;
     EXPECT_GT(a.curve[i].force_n, p.curve[i].force_n) << "point " << i;
-    if (i > 0) EXPECT_GT(a.curve[i].force_n, a.curve[i - 1].force_n);
+    if (i > 0) {
+      EXPECT_GT(a.curve[i].force_n, a.curve[i - 1].force_n);
+    }
   }
 }
 

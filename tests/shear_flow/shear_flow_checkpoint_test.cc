@@ -274,6 +274,11 @@ TEST_F(ShearFlowCheckpoint, CheckpointOfAnotherSpecIsRefused) {
   ShearFlowParams doubles = tiny_params();
   doubles.numerics.single_precision = false;
   expect_refused_and_fresh(doubles, path_, "precision");
+  // The elastic forces' precision too: the same spec run with double forces
+  // would not continue the float-force trajectory.
+  ShearFlowParams double_forces = tiny_params();
+  double_forces.numerics.elastic_single_precision = !tiny_params().numerics.elastic_single_precision;
+  expect_refused_and_fresh(double_forces, path_, "float elastic forces");
 }
 
 TEST_F(ShearFlowCheckpoint, GarbageAndMissingFilesAreRefused) {

@@ -97,6 +97,15 @@ std::string mismatch(const char* what, std::uint64_t file, std::uint64_t run) {
   return checkpoint_mismatch(what, file, run);
 }
 
+// Bit 0: float populations; bit 1: float elastic forces. A run resumed with
+// either precision changed would not continue the written trajectory.
+std::uint64_t precision_word(const lb::Fluid& fluid, const Run& run) {
+  const bool float_populations = fluid.params().precision == lb::Precision::kFloat;
+  const bool float_forces =
+      run.cells.size() > 0 && run.cells[0].elastic_precision == elastic::ForcePrecision::kFloat;
+  return (float_populations ? 1u : 0u) | (float_forces ? 2u : 0u);
+}
+
 }  // namespace
 
 std::uint64_t mesh_hash(const mesh::TetMesh& mesh) {
@@ -123,7 +132,7 @@ StatusOr<std::uint64_t> write_checkpoint(const Run& run, const ShearFlowResult& 
   header[kWordNx] = static_cast<std::uint64_t>(fluid.nx());
   header[kWordNy] = static_cast<std::uint64_t>(fluid.ny());
   header[kWordNz] = static_cast<std::uint64_t>(fluid.nz());
-  header[kWordPrecision] = fluid.params().precision == lb::Precision::kFloat ? 1 : 0;
+  header[kWordPrecision] = precision_word(fluid, run);
   header[kWordStreaming] = fluid.params().streaming == lb::Streaming::kAA ? 0 : 1;
   header[kWordVertices] = nv;
   header[kWordTets] = run.mesh.num_tets();
@@ -212,7 +221,8 @@ StatusOr<std::int64_t> read_checkpoint(const std::string& path, std::uint64_t sp
       {kWordNx, "lattice nx", static_cast<std::uint64_t>(fluid.nx())},
       {kWordNy, "lattice ny", static_cast<std::uint64_t>(fluid.ny())},
       {kWordNz, "lattice nz", static_cast<std::uint64_t>(fluid.nz())},
-      {kWordPrecision, "precision (1 float)", fluid.params().precision == lb::Precision::kFloat ? 1u : 0u},
+      {kWordPrecision, "precision (bit 0: float populations, bit 1: float elastic forces)",
+       precision_word(fluid, run)},
       {kWordStreaming, "streaming (0 AA)", fluid.params().streaming == lb::Streaming::kAA ? 0u : 1u},
       {kWordVertices, "vertex count", nv},
       {kWordTets, "tet count", run.mesh.num_tets()},

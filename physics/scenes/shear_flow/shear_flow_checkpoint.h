@@ -10,7 +10,8 @@
 // parser exposed to a hostile file.
 //
 //   header, 20 words: magic "CFLWCKPT", format version, spec hash,
-//     nx, ny, nz, precision (0 double, 1 float), streaming (0 AA, 1 two-array),
+//     nx, ny, nz, precision (bit 0: float populations, bit 1: float elastic
+//     forces), streaming (0 AA, 1 two-array),
 //     vertex count, tet count, hash of the reference mesh (positions and tets),
 //     time step, sample count, snapshot count, tank-treading vertex count,
 //     population bytes, wall-density bytes, payload bytes, payload checksum,

@@ -9,6 +9,7 @@
 // checkpoint is deleted when the job succeeds. The same for a suspension
 // job (three coarse cells): killed after its first checkpoint upload, it
 // completes on another worker from that checkpoint, bit-identical too.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <regex>
@@ -254,10 +255,13 @@ TEST_F(ServiceTest, KilledSuspensionWorkerIsResumedFromItsCheckpoint) {
   const std::string id = submit(spec);
   ASSERT_EQ(id, "job-1");
   Watcher watcher(*client_, id);
-  // A checkpoint every second of wall time (a quarter of the run); killed
-  // once the first is on the server and its upload finished (the worker
-  // logs it after the server committed it).
-  Process* first = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
+  // A checkpoint every sixth of the in-process run's wall time (at most a
+  // second: on a fast machine the whole run takes well under one, and a
+  // fixed second let it end before the first checkpoint); killed once the
+  // first is on the server and its upload finished (the worker logs it
+  // after the server committed it).
+  const std::string interval = std::to_string(std::min(1.0, reference_s / 6.0));
+  Process* first = start_worker({"--threads", "1", "--checkpoint-interval-s", interval});
   const bool uploaded_one = eventually(
       [&] { return fs::exists(checkpoint) && !uploaded_checkpoint_steps(first->log()).empty(); }, 120s);
   first->signal(SIGKILL);
@@ -265,7 +269,7 @@ TEST_F(ServiceTest, KilledSuspensionWorkerIsResumedFromItsCheckpoint) {
   const int delivered_before_kill = watcher.max_sample_index();
   const std::vector<std::int64_t> uploaded = uploaded_checkpoint_steps(first->log());
   // The next worker before any assertion: the watcher ends with the job.
-  Process* second = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
+  Process* second = start_worker({"--threads", "1", "--checkpoint-interval-s", interval});
   ASSERT_TRUE(uploaded_one) << first->log();
   ASSERT_FALSE(uploaded.empty()) << first->log();
   EXPECT_LT(delivered_before_kill, total_samples - 1) << "the run ended before the kill";

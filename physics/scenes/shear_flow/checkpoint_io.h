@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <span>
 #include <string>
@@ -135,6 +136,31 @@ inline Status checkpoint_refused(const std::string& why) {
 inline std::string checkpoint_mismatch(const char* what, std::uint64_t file, std::uint64_t run) {
   return std::string(what) + " " + std::to_string(file) + " in the file, " + std::to_string(run) +
          " in this run";
+}
+
+// Ends a checkpoint written to `temporary` after a placeholder header: checks
+// the payload's size against the one the header promised, fills in the payload
+// checksum (at `payload_checksum_word`) and the header checksum (the last word),
+// writes the header over the placeholder and renames the file to `path`, so a
+// reader finds the previous checkpoint or the whole new one. Returns the
+// file's size in bytes.
+inline StatusOr<std::uint64_t> finish_checkpoint_file(std::ofstream& out, std::span<std::uint64_t> header,
+                                                      std::size_t payload_checksum_word,
+                                                      const CheckpointWriter& w, std::uint64_t payload,
+                                                      const std::string& temporary, const std::string& path) {
+  if (w.bytes() != payload) return Status(StatusCode::kInternal, "checkpoint: payload size disagrees");
+  header[payload_checksum_word] = w.checksum();
+  header[header.size() - 1] = header_checksum(header);
+  out.seekp(0);
+  out.write(reinterpret_cast<const char*>(header.data()), static_cast<std::streamsize>(header.size_bytes()));
+  out.flush();
+  if (!out) return Status(StatusCode::kInternal, "checkpoint: cannot write " + temporary);
+  out.close();
+  std::error_code error;
+  std::filesystem::rename(temporary, path, error);
+  if (error)
+    return Status(StatusCode::kInternal, "checkpoint: cannot rename to " + path + ": " + error.message());
+  return header.size_bytes() + payload;
 }
 
 }  // namespace cellflow::scenes::shear_flow_detail

@@ -209,19 +209,7 @@ StatusOr<std::uint64_t> write_checkpoint(const CheckpointLayout& layout, const c
   }
   w.block(populations);
   w.block(walls);
-  if (w.bytes() != payload) return Status(StatusCode::kInternal, "checkpoint: payload size disagrees");
-  header[kWordPayloadChecksum] = w.checksum();
-  header[kWordHeaderChecksum] = header_checksum(header);
-  out.seekp(0);
-  out.write(reinterpret_cast<const char*>(header.data()), sizeof header);
-  out.flush();
-  if (!out) return Status(StatusCode::kInternal, "checkpoint: cannot write " + temporary);
-  out.close();
-  std::error_code error;
-  fs::rename(temporary, path, error);
-  if (error)
-    return Status(StatusCode::kInternal, "checkpoint: cannot rename to " + path + ": " + error.message());
-  return sizeof header + payload;
+  return finish_checkpoint_file(out, header, kWordPayloadChecksum, w, payload, temporary, path);
 }
 
 StatusOr<RestoredState> read_checkpoint(const std::string& path, const CheckpointLayout& layout,

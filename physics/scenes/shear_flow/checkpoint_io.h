@@ -163,4 +163,31 @@ inline StatusOr<std::uint64_t> finish_checkpoint_file(std::ofstream& out, std::s
   return header.size_bytes() + payload;
 }
 
+// Opens the checkpoint at `path` into `in` and reads its header (word 0 the
+// magic, word 1 the format version, the last word the header checksum),
+// refusing a file that cannot be opened or sized, is shorter than its header,
+// is not a `kind` checkpoint, has another format version or a header checksum
+// that fails. Returns the file's size in bytes; `in` stands after the header.
+inline StatusOr<std::uint64_t> read_checkpoint_header(const std::string& path, std::ifstream& in,
+                                                      std::span<std::uint64_t> header, std::uint64_t magic,
+                                                      std::uint64_t version, const std::string& kind) {
+  in.open(path, std::ios::binary);
+  if (!in) return checkpoint_refused("cannot open " + path);
+  std::error_code error;
+  const std::uint64_t file_bytes = std::filesystem::file_size(path, error);
+  if (error) return checkpoint_refused("cannot size " + path);
+  if (file_bytes < header.size_bytes() ||
+      !in.read(reinterpret_cast<char*>(header.data()), static_cast<std::streamsize>(header.size_bytes()))) {
+    return checkpoint_refused("shorter than its header (" + std::to_string(file_bytes) + " bytes)");
+  }
+  if (header[0] != magic) return checkpoint_refused("not a " + kind + " checkpoint (magic)");
+  if (header[1] != version) {
+    return checkpoint_refused("format version " + std::to_string(header[1]) + ", this program reads " +
+                              std::to_string(version));
+  }
+  if (header[header.size() - 1] != header_checksum(header))
+    return checkpoint_refused("header checksum mismatch");
+  return file_bytes;
+}
+
 }  // namespace cellflow::scenes::shear_flow_detail

@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <span>
 #include <vector>
@@ -18,8 +17,6 @@
 namespace cellflow::scenes::shear_flow_detail {
 
 namespace {
-
-namespace fs = std::filesystem;
 
 constexpr std::uint64_t kMagic = 0x54504B43574C4643ULL;  // "CFLWCKPT" read as a little-endian word
 constexpr int kHeaderWords = 20;
@@ -47,7 +44,8 @@ enum HeaderWord {
   kWordPayloadChecksum,
   kWordHeaderChecksum,
 };
-static_assert(kWordHeaderChecksum + 1 == kHeaderWords);
+static_assert(kWordMagic == 0 && kWordVersion == 1 && kWordHeaderChecksum + 1 == kHeaderWords,
+              "the layout read_checkpoint_header and finish_checkpoint_file expect");
 
 using Writer = CheckpointWriter;
 using Reader = CheckpointReader;
@@ -182,21 +180,12 @@ StatusOr<std::uint64_t> write_checkpoint(const Run& run, const ShearFlowResult& 
 StatusOr<std::int64_t> read_checkpoint(const std::string& path, std::uint64_t spec_hash,
                                        const Schedule& schedule, Run& run, ShearFlowResult& result,
                                        lb::Fluid& fluid) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return refused("cannot open " + path);
-  std::error_code error;
-  const std::uint64_t file_bytes = fs::file_size(path, error);
-  if (error) return refused("cannot size " + path);
   std::array<std::uint64_t, kHeaderWords> header{};
-  if (file_bytes < sizeof header || !in.read(reinterpret_cast<char*>(header.data()), sizeof header)) {
-    return refused("shorter than its header (" + std::to_string(file_bytes) + " bytes)");
-  }
-  if (header[kWordMagic] != kMagic) return refused("not a shear-flow checkpoint (magic)");
-  if (header[kWordVersion] != kCheckpointFormatVersion) {
-    return refused("format version " + std::to_string(header[kWordVersion]) + ", this program reads " +
-                   std::to_string(kCheckpointFormatVersion));
-  }
-  if (header[kWordHeaderChecksum] != header_checksum(header)) return refused("header checksum mismatch");
+  std::ifstream in;
+  const StatusOr<std::uint64_t> file_size =
+      read_checkpoint_header(path, in, header, kMagic, kCheckpointFormatVersion, "shear-flow");
+  if (!file_size.ok()) return file_size.status();
+  const std::uint64_t file_bytes = *file_size;
   if (header[kWordSpecHash] != spec_hash) return refused("written for another job spec (spec hash differs)");
 
   const std::size_t nv = run.mesh.num_vertices();

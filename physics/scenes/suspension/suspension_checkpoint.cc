@@ -4,7 +4,6 @@
 #include "physics/scenes/suspension/suspension_checkpoint.h"
 
 #include <array>
-#include <filesystem>
 #include <fstream>
 
 #include "physics/lb/fluid_state.h"
@@ -15,11 +14,12 @@ namespace cellflow::scenes::suspension_detail {
 
 namespace {
 
-namespace fs = std::filesystem;
 using shear_flow_detail::all_finite;
 using shear_flow_detail::CheckpointReader;
 using shear_flow_detail::CheckpointWriter;
+using shear_flow_detail::finish_checkpoint_file;
 using shear_flow_detail::header_checksum;
+using shear_flow_detail::read_checkpoint_header;
 using shear_flow_detail::word_of;
 using shear_flow_detail::WordHash;
 
@@ -52,7 +52,8 @@ enum HeaderWord {
   kWordPayloadChecksum,
   kWordHeaderChecksum,
 };
-static_assert(kWordHeaderChecksum + 1 == kHeaderWords);
+static_assert(kWordMagic == 0 && kWordVersion == 1 && kWordHeaderChecksum + 1 == kHeaderWords,
+              "the layout read_checkpoint_header and finish_checkpoint_file expect");
 
 using Header = std::array<std::uint64_t, kHeaderWords>;
 
@@ -214,21 +215,12 @@ StatusOr<std::uint64_t> write_checkpoint(const CheckpointLayout& layout, const c
 
 StatusOr<RestoredState> read_checkpoint(const std::string& path, const CheckpointLayout& layout,
                                         const coupling::ImmersedCells& cells, lb::Fluid& fluid) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return refused("cannot open " + path);
-  std::error_code error;
-  const std::uint64_t file_bytes = fs::file_size(path, error);
-  if (error) return refused("cannot size " + path);
   Header header{};
-  if (file_bytes < sizeof header || !in.read(reinterpret_cast<char*>(header.data()), sizeof header)) {
-    return refused("shorter than its header (" + std::to_string(file_bytes) + " bytes)");
-  }
-  if (header[kWordMagic] != kMagic) return refused("not a suspension checkpoint (magic)");
-  if (header[kWordVersion] != kSuspensionCheckpointFormatVersion) {
-    return refused("format version " + std::to_string(header[kWordVersion]) + ", this program reads " +
-                   std::to_string(kSuspensionCheckpointFormatVersion));
-  }
-  if (header[kWordHeaderChecksum] != header_checksum(header)) return refused("header checksum mismatch");
+  std::ifstream in;
+  const StatusOr<std::uint64_t> file_size =
+      read_checkpoint_header(path, in, header, kMagic, kSuspensionCheckpointFormatVersion, "suspension");
+  if (!file_size.ok()) return file_size.status();
+  const std::uint64_t file_bytes = *file_size;
   if (header[kWordSpecHash] != layout.spec_hash)
     return refused("written for another job spec (spec hash differs)");
 

@@ -1,9 +1,10 @@
 // Suspension benchmarks (issue 15, performance):
 //   suspension_bench step  [cells=8 cpr=6 vertices=1000 strain=0.3 ca=0.2 threads=1 lambda=1 marking_every=1
-//                           checkpoint=PATH checkpoint_every_s=300 resume=PATH]
+//                           elastic_float=1 checkpoint=PATH checkpoint_every_s=300 resume=PATH]
 //     time per step of the 5 x 8 x 4 R box with `cells` cells at the default
 //     resolution, split into LB, elastic forces, interpolation + spreading,
-//     contact search + forces, marking (none at lambda = 1) and observables.
+//     contact search + forces, marking (none at lambda = 1) and observables;
+//     elastic_float=0 the double elastic loop (numerics.flow.elastic_single_precision).
 //     checkpoint=PATH writes a checkpoint at the first checkpoint step after
 //     each checkpoint_every_s of wall time (0: at every one) and prints its
 //     size and its wall and CPU time against the time step; resume=PATH
@@ -70,6 +71,8 @@ int step_bench(std::map<std::string, std::string>& args) {
       get("ca", 0.2), get("strain", 0.3), static_cast<int>(get("threads", 1)));
   p.kinds[0].viscosity_ratio = get("lambda", 1.0);
   p.numerics.marking_every_steps = static_cast<int>(get("marking_every", 1));
+  p.numerics.flow.elastic_single_precision =
+      get("elastic_float", p.numerics.flow.elastic_single_precision ? 1 : 0) != 0;
   StatusOr<scenes::PlannedSuspension> planned = scenes::plan_suspension_run(p);
   if (!planned.ok()) {
     std::fprintf(stderr, "%s\n", planned.status().to_string().c_str());

@@ -54,7 +54,8 @@ struct ImmersedCell {
   double spacing_m = 0.0;               // dx
   double newton_to_lattice = 0.0;       // F_lb = F dt^2 / (m dx) per newton
   // Arithmetic of the elastic force loop (elastic_body.h); the flow scene
-  // sets it from ShearFlowNumerics::elastic_single_precision.
+  // and the suspension set it from ShearFlowNumerics::elastic_single_precision
+  // (the suspension's numerics.flow).
   elastic::ForcePrecision elastic_precision = elastic::ForcePrecision::kDouble;
   NodeBox last_support;  // nodes this cell's last spread touched
 };

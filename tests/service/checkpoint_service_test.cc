@@ -162,19 +162,23 @@ TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
   // The checkpoint is gone with the job's end.
   EXPECT_FALSE(fs::exists(checkpoint));
 
-  // Work and time. The resumed attempt stepped only from the checkpoint on
-  // (a step count, immune to the load of a shared machine), and it took less
-  // than a whole uninterrupted run: a restart from zero steps the whole run
-  // again. (The whole, total_s, is printed but not bounded: its fixed costs,
-  // the 1 s lease expiry and two worker starts, do not shrink with the run,
-  // and since the flow step got faster they are 0.7 of a run.)
+  // Work. The resumed attempt stepped only from the checkpoint on: a step
+  // count, immune to the load of a shared machine (a restart from zero would
+  // resume after step 0). The times are printed, not bounded: the attempt's
+  // wall time against the in-process run's depends on what else the machine
+  // runs meanwhile (it failed once beside two long tests), and the whole,
+  // total_s, carries fixed costs (the 1 s lease expiry, two worker starts)
+  // that do not shrink with the run.
   std::smatch resumed;
   ASSERT_TRUE(std::regex_search(log, resumed, std::regex(R"(resumed after step (\d+))")));
   const std::int64_t resumed_step = std::stoll(resumed[1]);
-  // From the last checkpoint the killed worker uploaded.
+  // From the last checkpoint that reached the server: the last one the
+  // killed worker logged or, when the server committed another between the
+  // worker's upload and its log line (the SIGKILL can fall in between), a
+  // later one, which is still a checkpoint the first attempt took.
   const std::vector<std::int64_t> uploaded = uploaded_checkpoint_steps(first->log());
   ASSERT_FALSE(uploaded.empty());
-  EXPECT_EQ(resumed_step, uploaded.back());
+  EXPECT_GE(resumed_step, uploaded.back());
   EXPECT_GT(resumed_step, 0);
   EXPECT_LT(resumed_step, reference.time_steps);
   const double second_attempt_s = attempt_seconds(log);
@@ -187,7 +191,6 @@ TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
       reference_s, delivered_before_kill, total_samples, killed_after_s, total_s, total_s / reference_s,
       static_cast<long long>(resumed_step), static_cast<long long>(reference.time_steps), second_attempt_s,
       second_attempt_s / reference_s);
-  EXPECT_LT(second_attempt_s, reference_s);
 }
 
 // SIGTERM (Slurm's warning before a time limit or a preemption): the worker

@@ -328,6 +328,11 @@ TEST_F(SuspensionCheckpoint, CheckpointOfAnotherSpecIsRefused) {
   SuspensionParams doubles = tiny_suspension(1.0);
   doubles.numerics.flow.single_precision = !doubles.numerics.flow.single_precision;
   expect_refused_and_fresh(doubles, path_, "precision");
+  // The elastic forces' precision too (every cell takes the scene's).
+  SuspensionParams double_forces = tiny_suspension(1.0);
+  double_forces.numerics.flow.elastic_single_precision =
+      !double_forces.numerics.flow.elastic_single_precision;
+  expect_refused_and_fresh(double_forces, path_, "float elastic forces");
 }
 
 }  // namespace

@@ -34,6 +34,13 @@ struct WordHash {
   }
 };
 
+// The precision word of both formats: bit 0 float populations, bit 1 float
+// elastic forces. A run resumed with either precision changed would not
+// continue the written trajectory, so a reader refuses a different word.
+constexpr std::uint64_t checkpoint_precision_word(bool float_populations, bool float_elastic_forces) {
+  return (float_populations ? 1u : 0u) | (float_elastic_forces ? 2u : 0u);
+}
+
 inline std::uint64_t word_of(double v) {
   return std::bit_cast<std::uint64_t>(v);
 }

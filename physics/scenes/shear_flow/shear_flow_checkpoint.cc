@@ -96,13 +96,10 @@ std::string mismatch(const char* what, std::uint64_t file, std::uint64_t run) {
   return checkpoint_mismatch(what, file, run);
 }
 
-// Bit 0: float populations; bit 1: float elastic forces. A run resumed with
-// either precision changed would not continue the written trajectory.
 std::uint64_t precision_word(const lb::Fluid& fluid, const Run& run) {
-  const bool float_populations = fluid.params().precision == lb::Precision::kFloat;
-  const bool float_forces =
-      run.cells.size() > 0 && run.cells[0].elastic_precision == elastic::ForcePrecision::kFloat;
-  return (float_populations ? 1u : 0u) | (float_forces ? 2u : 0u);
+  return checkpoint_precision_word(
+      fluid.params().precision == lb::Precision::kFloat,
+      run.cells.size() > 0 && run.cells[0].elastic_precision == elastic::ForcePrecision::kFloat);
 }
 
 }  // namespace

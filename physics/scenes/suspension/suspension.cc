@@ -568,6 +568,8 @@ SuspensionResult run_suspension(const PlannedSuspension& planned, const Suspensi
         cell.positions_lattice[3 * v + a] = origin[a] + u.length_to_lattice(rotated);
       }
     }
+    cell.elastic_precision =
+        n.elastic_single_precision ? elastic::ForcePrecision::kFloat : elastic::ForcePrecision::kDouble;
     // s = 1 - offset dx / R (numerics.flow.hydrodynamic_radius_offset).
     cell.marker_scale = 1.0 - radius_offset(n) * u.dx_m() / kind.radius_m;
   }

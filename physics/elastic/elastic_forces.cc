@@ -531,13 +531,16 @@ double forces_of_range(const ElasticBody& body, const double* y, double* forces,
 // the box offset of a flow cell would otherwise cost its digits. The forces
 // are summed per vertex in a padded float accumulator (4 floats per vertex)
 // and added to the caller's double forces at the end; the energy is summed
-// over lanes in double. Gather and scatter are 128-bit loads and 4x4
-// transposes (one corner of four tets per load or add), the same SSE code in
-// every level's copy; with no FMA contraction every level gives the same
-// bits here too.
+// over lanes in double. Gather and scatter are 128-bit loads and adds (one
+// tet corner each) and 4x4 transposes, done on 4 lanes at a time by the
+// generic copy and on 8 / 16 at once by the AVX2 / AVX-512 ones; they only
+// move values and the adds keep one order, so with no FMA contraction every
+// level gives the same bits here too.
 
 struct FloatTetBlock {
-  alignas(64) float y[12 * kLanes];       // y[kLanes (3 a + i) + lane] = y_i - c_i of local vertex a
+  // y[n % 2][kLanes (3 a + i) + lane] = y_i - c_i of local vertex a in block
+  // n: the loop gathers block n + 1 while block n runs (below).
+  alignas(64) float y[2][12 * kLanes];
   alignas(64) float forces[12 * kLanes];  // forces[kLanes (3 a + i) + lane] = f_i of local vertex a
   alignas(64) float energy[kLanes];       // V0 U of each lane
   alignas(64) float det_f[kLanes];        // J of each lane
@@ -644,11 +647,19 @@ inline __attribute__((always_inline)) void float_neo_hookean_lane(const float* n
 }
 
 // The positions of the 4 vertices of the kLanes tets of a block from y4
-// (4 floats per vertex, 16-byte aligned) into the rows of FloatTetBlock::y:
-// per corner and 4 lanes, four 128-bit loads and a 4x4 transpose.
-inline __attribute__((always_inline)) void gather_float_positions(const float* y4,
-                                                                  const std::int32_t* vertices,
-                                                                  float* y_lanes) {
+// (4 floats per vertex, 16-byte aligned) into the rows of FloatTetBlock::y.
+// Only copies, so every level gives the same bits. Generic (SSE2): per
+// corner and 4 lanes, four 128-bit loads and a 4x4 transpose (7 shuffles).
+// AVX2 / AVX-512: the same transpose on 8 / 16 lanes at once (below). The
+// shuffles share one port with the 512-bit arithmetic on Intel (perf
+// annotate, bench/elastic: gather and scatter were 40 % of the loop); vector
+// gathers (vgatherdps, 3 per corner) measured slower still on the AVX-512
+// VM: flow cell 114 against 136 M tets/s with these transposes.
+using GatherFloatPositions = void (*)(const float* y4, const std::int32_t* vertices, float* y_lanes);
+
+inline __attribute__((always_inline)) void gather_float_positions_generic(const float* y4,
+                                                                          const std::int32_t* vertices,
+                                                                          float* y_lanes) {
 #if defined(__x86_64__)
   for (int a = 0; a < 4; ++a) {
     for (int c = 0; c < kLanes; c += 4) {
@@ -675,17 +686,75 @@ inline __attribute__((always_inline)) void gather_float_positions(const float* y
   }
 #endif
 }
+#if defined(__x86_64__)
+// _mm512_unpack{lo,hi}_ps with every lane kept: the same instruction, but
+// GCC 12's plain intrinsics pass an undefined register and warn
+// (-Wmaybe-uninitialized) wherever they are inlined.
+__attribute__((target("avx512f"))) inline __m512 unpacklo_ps512(__m512 a, __m512 b) {
+  return _mm512_maskz_unpacklo_ps(0xffff, a, b);
+}
+__attribute__((target("avx512f"))) inline __m512 unpackhi_ps512(__m512 a, __m512 b) {
+  return _mm512_maskz_unpackhi_ps(0xffff, a, b);
+}
+#endif
+#if defined(__x86_64__)
+// One body for AVX2 (V = __m256, 8 lanes) and AVX-512 (__m512, 16 lanes):
+// per corner and register of lanes, the vertices of lanes c + 4 j + k
+// (j = 0 .. kWidth / 4 - 1) loaded into the 128-bit parts of p[k] (a load
+// and kWidth / 4 - 1 inserts), then the 4x4 transpose of the generic copy on
+// all parts at once: 7 shuffles per kWidth lanes instead of per 4.
+#define CELLFLOW_GATHER_FLOAT_POSITIONS(name, isa, V, kWidth, widen, insert, store, unpacklo, unpackhi, \
+                                        shuffle)                                                        \
+  __attribute__((target(isa))) inline void name(const float* y4, const std::int32_t* vertices,          \
+                                                float* y_lanes) {                                       \
+    for (int a = 0; a < 4; ++a) {                                                                       \
+      for (int c = 0; c < kLanes; c += kWidth) {                                                        \
+        const std::int32_t* v = vertices + kLanes * a + c;                                              \
+        V p[4];                                                                                         \
+        for (int k = 0; k < 4; ++k) {                                                                   \
+          p[k] = widen(_mm_load_ps(y4 + 4 * static_cast<std::int64_t>(v[k])));                          \
+          for (int j = 1; j < kWidth / 4; ++j) {                                                        \
+            p[k] = insert(p[k], _mm_load_ps(y4 + 4 * static_cast<std::int64_t>(v[4 * j + k])), j);      \
+          }                                                                                             \
+        }                                                                                               \
+        const V xy01 = unpacklo(p[0], p[1]); /* x0 x1 y0 y1 in every part */                            \
+        const V xy23 = unpacklo(p[2], p[3]);                                                            \
+        const V zw01 = unpackhi(p[0], p[1]); /* z0 z1 0 0 */                                            \
+        const V zw23 = unpackhi(p[2], p[3]);                                                            \
+        store(y_lanes + kLanes * (3 * a) + c, shuffle(xy01, xy23, 0x44));                               \
+        store(y_lanes + kLanes * (3 * a + 1) + c, shuffle(xy01, xy23, 0xee));                           \
+        store(y_lanes + kLanes * (3 * a + 2) + c, shuffle(zw01, zw23, 0x44));                           \
+      }                                                                                                 \
+    }                                                                                                   \
+  }
+CELLFLOW_GATHER_FLOAT_POSITIONS(gather_float_positions_avx2, "avx2", __m256, 8, _mm256_zextps128_ps256,
+                                _mm256_insertf128_ps, _mm256_store_ps, _mm256_unpacklo_ps, _mm256_unpackhi_ps,
+                                _mm256_shuffle_ps)
+CELLFLOW_GATHER_FLOAT_POSITIONS(gather_float_positions_avx512, "avx512f,avx512vl,avx512dq,avx512bw", __m512,
+                                16, _mm512_zextps128_ps512, _mm512_insertf32x4, _mm512_store_ps,
+                                unpacklo_ps512, unpackhi_ps512, _mm512_shuffle_ps)
+#undef CELLFLOW_GATHER_FLOAT_POSITIONS
+#endif
 
 // The forces of a full block (FloatTetBlock::forces layout) added into the
-// float accumulator (acc[4 v + i], acc[4 v + 3] padding that receives zeros):
-// per corner and 4 lanes a 4x4 transpose into (f_x, f_y, f_z, 0), then one
-// 128-bit add per tet corner, lanes in order.
-inline __attribute__((always_inline)) void scatter_float_forces(const float* f_lanes,
-                                                                const std::int32_t* vertices, float* acc) {
+// float accumulator (acc[4 v + i], acc[4 v + 3] padding that receives zeros)
+// as one 128-bit add of (f_x, f_y, f_z, 0) per tet corner, corner after
+// corner and within a corner lane after lane: the same additions in the same
+// order on every level, so every level gives the same bits. The levels
+// differ in how the (x, y, z) rows become corners: generic, per 4 lanes a
+// 4x4 transpose (8 shuffles); AVX2 / AVX-512, the same unpacks on 8 / 16
+// lanes at once (8 shuffles per 8 / 16 lanes), then one corner at a time
+// from a staging row (GCC keeps it in registers and extracts the 128-bit
+// parts; forcing the stores and loads measured 10 % slower).
+using ScatterFloatForces = void (*)(const float* f_lanes, const std::int32_t* vertices, float* acc);
+
+inline __attribute__((always_inline)) void scatter_float_forces_generic(const float* f_lanes,
+                                                                        const std::int32_t* vertices,
+                                                                        float* acc) {
 #if defined(__x86_64__)
   const __m128 zero = _mm_setzero_ps();
-  for (int c = 0; c < kLanes; c += 4) {
-    for (int a = 0; a < 4; ++a) {
+  for (int a = 0; a < 4; ++a) {
+    for (int c = 0; c < kLanes; c += 4) {
       const __m128 x = _mm_load_ps(f_lanes + kLanes * (3 * a) + c);
       const __m128 y = _mm_load_ps(f_lanes + kLanes * (3 * a + 1) + c);
       const __m128 z = _mm_load_ps(f_lanes + kLanes * (3 * a + 2) + c);
@@ -703,21 +772,70 @@ inline __attribute__((always_inline)) void scatter_float_forces(const float* f_l
     }
   }
 #else
-  for (int c = 0; c < kLanes; c += 4) {
-    for (int a = 0; a < 4; ++a) {
-      for (int l = 0; l < 4; ++l) {
-        float* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + c + l]);
-        for (int i = 0; i < 3; ++i) out[i] += f_lanes[kLanes * (3 * a + i) + c + l];
-      }
+  for (int a = 0; a < 4; ++a) {
+    for (int lane = 0; lane < kLanes; ++lane) {
+      float* out = acc + 4 * static_cast<std::int64_t>(vertices[kLanes * a + lane]);
+      for (int i = 0; i < 3; ++i) out[i] += f_lanes[kLanes * (3 * a + i) + lane];
     }
   }
 #endif
+}
+#if defined(__x86_64__)
+// One body for AVX2 (V = __m256, 8 lanes) and AVX-512 (__m512, 16 lanes):
+// the in-lane unpacks leave in 128-bit part j of corners[k] the corner of
+// lane c + 4 j + k, stored at staging[4 (kWidth k / 4 + j)].
+#define CELLFLOW_SCATTER_FLOAT_FORCES(name, isa, V, kWidth, load, store, unpacklo, unpackhi, shuffle, zero) \
+  __attribute__((target(isa))) inline void name(const float* f_lanes, const std::int32_t* vertices,         \
+                                                float* acc) {                                               \
+    alignas(64) float staging[4 * kWidth];                                                                  \
+    const V z0 = zero();                                                                                    \
+    for (int a = 0; a < 4; ++a) {                                                                           \
+      for (int c = 0; c < kLanes; c += kWidth) {                                                            \
+        const V x = load(f_lanes + kLanes * (3 * a) + c);                                                   \
+        const V y = load(f_lanes + kLanes * (3 * a + 1) + c);                                               \
+        const V z = load(f_lanes + kLanes * (3 * a + 2) + c);                                               \
+        const V xy01 = unpacklo(x, y);                                                                      \
+        const V xy23 = unpackhi(x, y);                                                                      \
+        const V z01 = unpacklo(z, z0);                                                                      \
+        const V z23 = unpackhi(z, z0);                                                                      \
+        store(staging, shuffle(xy01, z01, 0x44));                                                           \
+        store(staging + kWidth, shuffle(xy01, z01, 0xee));                                                  \
+        store(staging + 2 * kWidth, shuffle(xy23, z23, 0x44));                                              \
+        store(staging + 3 * kWidth, shuffle(xy23, z23, 0xee));                                              \
+        const std::int32_t* v = vertices + kLanes * a + c;                                                  \
+        for (int l = 0; l < kWidth; ++l) {                                                                  \
+          float* out = acc + 4 * static_cast<std::int64_t>(v[l]);                                           \
+          const float* corner = staging + kWidth * (l % 4) + 4 * (l / 4);                                   \
+          _mm_store_ps(out, _mm_add_ps(_mm_load_ps(out), _mm_load_ps(corner)));                             \
+        }                                                                                                   \
+      }                                                                                                     \
+    }                                                                                                       \
+  }
+CELLFLOW_SCATTER_FLOAT_FORCES(scatter_float_forces_avx2, "avx2", __m256, 8, _mm256_load_ps, _mm256_store_ps,
+                              _mm256_unpacklo_ps, _mm256_unpackhi_ps, _mm256_shuffle_ps, _mm256_setzero_ps)
+CELLFLOW_SCATTER_FLOAT_FORCES(scatter_float_forces_avx512, "avx512f,avx512vl,avx512dq,avx512bw", __m512, 16,
+                              _mm512_load_ps, _mm512_store_ps, unpacklo_ps512, unpackhi_ps512,
+                              _mm512_shuffle_ps, _mm512_setzero_ps)
+#undef CELLFLOW_SCATTER_FLOAT_FORCES
+#endif
+
+// sum_l e[l] over the kLanes lanes of a block in double, as a fixed tree
+// (lanes l and l + 8, then l + 4, l + 2, l + 1; written out: as a loop over
+// the widths GCC kept the partial sums in memory). Plain code, so every
+// level makes the same additions in the same order.
+inline __attribute__((always_inline)) double lane_tree_sum(const float* e) {
+  static_assert(kLanes == 16);
+  double s8[8], s4[4];
+  for (int l = 0; l < 8; ++l) s8[l] = static_cast<double>(e[l]) + static_cast<double>(e[l + 8]);
+  for (int l = 0; l < 4; ++l) s4[l] = s8[l] + s8[l + 4];
+  return (s4[0] + s4[2]) + (s4[1] + s4[3]);
 }
 
 // Energy and forces (into the float accumulator acc) of tets [begin, end) in
 // float; as evaluate_range_body otherwise. tet_pressure (kNodalAverage) in
 // float too.
-template <bool kMooneyRivlin, bool kNodal, int kChunk>
+template <bool kMooneyRivlin, bool kNodal, int kChunk, GatherFloatPositions kGather,
+          ScatterFloatForces kScatter>
 inline __attribute__((always_inline)) double evaluate_float_range_body(const ElasticBody& body,
                                                                        const float* y4, float* acc,
                                                                        std::int64_t begin, std::int64_t end,
@@ -734,14 +852,21 @@ inline __attribute__((always_inline)) double evaluate_float_range_body(const Ela
   const float* pressure = kNodal ? tet_pressure : kappa;
   FloatTetBlock blk;
   double energy = 0.0;
-  for (std::int64_t block = begin / kLanes; block * kLanes < end; ++block) {
+  // The positions of the next block are gathered before the lane loop of
+  // this one, so that the gather's loads (L2 latency for a flow cell's 3000
+  // vertices) overlap the arithmetic instead of stalling the next block.
+  const std::int64_t first_block = begin / kLanes;
+  const std::int64_t end_block = (end + kLanes - 1) / kLanes;
+  if (first_block < end_block) kGather(y4, block_vertices + 4 * kLanes * first_block, blk.y[0]);
+  for (std::int64_t block = first_block; block < end_block; ++block) {
     const std::int64_t first = block * kLanes;
     const int lane_begin = static_cast<int>(std::max<std::int64_t>(0, begin - first));
     const int lane_end = static_cast<int>(std::min<std::int64_t>(kLanes, end - first));
     const float* b = block_b + 9 * kLanes * block;
     const float* nh = body.float_block_neo_hookean.data() + kFloatNeoHookeanRows * kLanes * block;
     const std::int32_t* v0 = block_vertices + 4 * kLanes * block;
-    gather_float_positions(y4, v0, blk.y);
+    const float* y_block = blk.y[(block - first_block) % 2];
+    if (block + 1 < end_block) kGather(y4, v0 + 4 * kLanes, blk.y[(block - first_block + 1) % 2]);
     const float* volume_b = volume + first;
     const float* mu1_b = mu1 + first;
     const float* mu2_b = mu2 + first;
@@ -753,11 +878,11 @@ inline __attribute__((always_inline)) double evaluate_float_range_body(const Ela
         const float kappa_l = kNodal ? 0.0f : kappa_b[lane];
         const float pressure_l = kNodal ? pressure_b[lane] : 0.0f;
         if constexpr (kMooneyRivlin) {
-          float_tet_lane<kMooneyRivlin>(b + lane, blk.y + lane, mu1_b[lane], mu2_b[lane], kappa_l, pressure_l,
-                                        volume_b[lane], blk.det_f + lane, blk.energy + lane,
+          float_tet_lane<kMooneyRivlin>(b + lane, y_block + lane, mu1_b[lane], mu2_b[lane], kappa_l,
+                                        pressure_l, volume_b[lane], blk.det_f + lane, blk.energy + lane,
                                         blk.forces + lane);
         } else {
-          float_neo_hookean_lane<kNodal>(nh + lane, blk.y + lane, mu1_b[lane], kappa_l, pressure_l,
+          float_neo_hookean_lane<kNodal>(nh + lane, y_block + lane, mu1_b[lane], kappa_l, pressure_l,
                                          volume_b[lane], blk.det_f + lane, blk.energy + lane,
                                          blk.forces + lane);
         }
@@ -772,12 +897,15 @@ inline __attribute__((always_inline)) double evaluate_float_range_body(const Ela
     } else {
       run_lanes(lane_begin, lane_end);
     }
-    bool any_inverted = false;
-    for (int lane = 0; lane < kLanes; ++lane) any_inverted |= blk.det_f[lane] <= 0.0f;
-    if (lane_begin == 0 && lane_end == kLanes && !any_inverted) {
-#pragma GCC unroll 16
-      for (int lane = 0; lane < kLanes; ++lane) energy += static_cast<double>(blk.energy[lane]);
-      scatter_float_forces(blk.forces, v0, acc);
+    // Inverted lanes counted by a vector loop and a full block's energies
+    // summed as a tree (a compare and a branch per lane, then a chain of 16
+    // dependent double adds, took 9 % of the loop).
+    int inverted_lanes = 0;
+#pragma omp simd reduction(+ : inverted_lanes)
+    for (int lane = 0; lane < kLanes; ++lane) inverted_lanes += blk.det_f[lane] <= 0.0f ? 1 : 0;
+    if (lane_begin == 0 && lane_end == kLanes && inverted_lanes == 0) {
+      energy += lane_tree_sum(blk.energy);
+      kScatter(blk.forces, v0, acc);
     } else {
       for (int lane = lane_begin; lane < lane_end; ++lane) {
         if (blk.det_f[lane] <= 0.0f) {
@@ -799,8 +927,9 @@ template <bool kMooneyRivlin, bool kNodal>
 double evaluate_float_range_generic(const ElasticBody& body, const float* y4, float* acc, std::int64_t begin,
                                     std::int64_t end, std::int64_t& first_inverted,
                                     const float* tet_pressure) {
-  return evaluate_float_range_body<kMooneyRivlin, kNodal, 4>(body, y4, acc, begin, end, first_inverted,
-                                                             tet_pressure);
+  return evaluate_float_range_body<kMooneyRivlin, kNodal, 4, gather_float_positions_generic,
+                                   scatter_float_forces_generic>(body, y4, acc, begin, end, first_inverted,
+                                                                 tet_pressure);
 }
 #if defined(__x86_64__)
 template <bool kMooneyRivlin, bool kNodal>
@@ -809,15 +938,17 @@ __attribute__((target("avx2"))) double evaluate_float_range_avx2(const ElasticBo
                                                                  std::int64_t end,
                                                                  std::int64_t& first_inverted,
                                                                  const float* tet_pressure) {
-  return evaluate_float_range_body<kMooneyRivlin, kNodal, 8>(body, y4, acc, begin, end, first_inverted,
-                                                             tet_pressure);
+  return evaluate_float_range_body<kMooneyRivlin, kNodal, 8, gather_float_positions_avx2,
+                                   scatter_float_forces_avx2>(body, y4, acc, begin, end, first_inverted,
+                                                              tet_pressure);
 }
 template <bool kMooneyRivlin, bool kNodal>
 __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw"))) double evaluate_float_range_avx512(
     const ElasticBody& body, const float* y4, float* acc, std::int64_t begin, std::int64_t end,
     std::int64_t& first_inverted, const float* tet_pressure) {
-  return evaluate_float_range_body<kMooneyRivlin, kNodal, 16>(body, y4, acc, begin, end, first_inverted,
-                                                              tet_pressure);
+  return evaluate_float_range_body<kMooneyRivlin, kNodal, 16, gather_float_positions_avx512,
+                                   scatter_float_forces_avx512>(body, y4, acc, begin, end, first_inverted,
+                                                                tet_pressure);
 }
 #endif
 
@@ -861,23 +992,83 @@ float* float_vertex_buffer(std::vector<float>& storage, std::size_t num_vertices
   return storage.data() + (32 - address % 32) % 32 / sizeof(float);
 }
 
-// y4 = (y - c, 0) in float, c the centre of the bounding box of y.
+// y4 = (y - c, 0) in float, c the centre of the bounding box of y. SSE2
+// (every x86-64): min / max, the differences and the conversions are exact
+// IEEE operations, so any grouping gives the same bits; as scalar loops they
+// were 4 % (flow cell) to 9 % (196k-tet box) of a force call.
 void float_positions(const double* y, std::size_t num_vertices, float* y4) {
   double lo[3] = {0.0, 0.0, 0.0}, hi[3] = {0.0, 0.0, 0.0};
   if (num_vertices > 0) {
     for (int i = 0; i < 3; ++i) lo[i] = hi[i] = y[i];
   }
-  for (std::size_t v = 1; v < num_vertices; ++v) {
+  std::size_t v = 1;
+#if defined(__x86_64__)
+  // Two vertices (x y | z x | y z) a step, three pairs of running bounds.
+  __m128d lo_xy = _mm_set_pd(lo[1], lo[0]), lo_zx = _mm_set_pd(lo[0], lo[2]),
+          lo_yz = _mm_set_pd(lo[2], lo[1]);
+  __m128d hi_xy = lo_xy, hi_zx = lo_zx, hi_yz = lo_yz;
+  for (; v + 2 <= num_vertices; v += 2) {
+    const double* p = y + 3 * v;
+    const __m128d xy = _mm_loadu_pd(p), zx = _mm_loadu_pd(p + 2), yz = _mm_loadu_pd(p + 4);
+    lo_xy = _mm_min_pd(lo_xy, xy);
+    lo_zx = _mm_min_pd(lo_zx, zx);
+    lo_yz = _mm_min_pd(lo_yz, yz);
+    hi_xy = _mm_max_pd(hi_xy, xy);
+    hi_zx = _mm_max_pd(hi_zx, zx);
+    hi_yz = _mm_max_pd(hi_yz, yz);
+  }
+  alignas(16) double l[6], h[6];
+  _mm_store_pd(l, lo_xy);
+  _mm_store_pd(l + 2, lo_zx);
+  _mm_store_pd(l + 4, lo_yz);
+  _mm_store_pd(h, hi_xy);
+  _mm_store_pd(h + 2, hi_zx);
+  _mm_store_pd(h + 4, hi_yz);
+  for (int i = 0; i < 3; ++i) {
+    lo[i] = std::min(l[i], l[i + 3]);
+    hi[i] = std::max(h[i], h[i + 3]);
+  }
+#endif
+  for (; v < num_vertices; ++v) {
     for (int i = 0; i < 3; ++i) {
       lo[i] = std::min(lo[i], y[3 * v + i]);
       hi[i] = std::max(hi[i], y[3 * v + i]);
     }
   }
   const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
-  for (std::size_t v = 0; v < num_vertices; ++v) {
-    for (int i = 0; i < 3; ++i) y4[4 * v + i] = static_cast<float>(y[3 * v + i] - c[i]);
-    y4[4 * v + 3] = 0.0f;
+  std::size_t first_scalar = 0;
+#if defined(__x86_64__)
+  // (x - c_x, y - c_y) and (z - c_z, 0 - 0) converted, packed to (x, y, z, 0).
+  const __m128d c_xy = _mm_set_pd(c[1], c[0]), c_z = _mm_set_sd(c[2]);
+  for (std::size_t u = 0; u + 1 < num_vertices; ++u) {
+    const double* p = y + 3 * u;
+    const __m128 xy = _mm_cvtpd_ps(_mm_sub_pd(_mm_loadu_pd(p), c_xy));
+    const __m128 z = _mm_cvtpd_ps(_mm_sub_pd(_mm_load_sd(p + 2), c_z));
+    _mm_store_ps(y4 + 4 * u, _mm_movelh_ps(xy, z));
   }
+  first_scalar = num_vertices > 0 ? num_vertices - 1 : 0;
+#endif
+  for (std::size_t u = first_scalar; u < num_vertices; ++u) {
+    for (int i = 0; i < 3; ++i) y4[4 * u + i] = static_cast<float>(y[3 * u + i] - c[i]);
+    y4[4 * u + 3] = 0.0f;
+  }
+}
+
+// forces (3 doubles per vertex) += acc (4 floats per vertex), one double
+// add per component (SSE2 conversions: exact, the same bits as scalar code).
+void add_float_forces(const float* acc, std::size_t num_vertices, double* forces) {
+#if defined(__x86_64__)
+  for (std::size_t v = 0; v < num_vertices; ++v) {
+    const __m128 a = _mm_load_ps(acc + 4 * v);
+    double* f = forces + 3 * v;
+    _mm_storeu_pd(f, _mm_add_pd(_mm_loadu_pd(f), _mm_cvtps_pd(a)));
+    f[2] += static_cast<double>(acc[4 * v + 2]);
+  }
+#else
+  for (std::size_t v = 0; v < num_vertices; ++v) {
+    for (int i = 0; i < 3; ++i) forces[3 * v + i] += static_cast<double>(acc[4 * v + i]);
+  }
+#endif
 }
 
 // A body without its float copies (assembled by hand) gets a blocked copy.
@@ -923,9 +1114,7 @@ ElasticEvaluation evaluate_float(const ElasticBody& body, const double* y, doubl
     std::fill(acc, acc + 4 * num_vertices, 0.0f);
     result.energy_j +=
         evaluate_float_range<kMooneyRivlin>(body, y4, acc, begin, end, first_inverted, tet_pressure, simd);
-    for (std::size_t v = 0; v < num_vertices; ++v) {
-      for (int i = 0; i < 3; ++i) forces[3 * v + i] += static_cast<double>(acc[4 * v + i]);
-    }
+    add_float_forces(acc, num_vertices, forces);
   } else {
     thread_local std::vector<const float*> accumulator_list;
     accumulator_list.assign(static_cast<std::size_t>(team), nullptr);

@@ -992,10 +992,79 @@ float* float_vertex_buffer(std::vector<float>& storage, std::size_t num_vertices
   return storage.data() + (32 - address % 32) % 32 / sizeof(float);
 }
 
+#if defined(__x86_64__)
+// AVX-512 steps of the vertex loops below, 4 vertices (12 doubles, 16
+// floats) at a time; each returns how many vertices it did (a multiple of
+// 4), the SSE2 loops do the rest. The same exact operations element by
+// element (min / max, differences, conversions, one add), so the same bits.
+// The maskz forms with every lane kept are the plain instructions; GCC 12's
+// plain intrinsics pass an undefined register and warn (-Wmaybe-uninitialized).
+#define CELLFLOW_AVX512 __attribute__((target("avx512f,avx512vl,avx512dq,avx512bw")))
+CELLFLOW_AVX512 std::size_t bounds_avx512(const double* y, std::size_t num_vertices, double* lo, double* hi) {
+  const std::size_t n4 = num_vertices / 4 * 4;
+  if (n4 == 0) return 0;
+  // lanes (x y z x y z x y | z x y z)
+  __m512d lo8 = _mm512_loadu_pd(y), hi8 = lo8;
+  __m256d lo4 = _mm256_loadu_pd(y + 8), hi4 = lo4;
+  for (std::size_t v = 4; v < n4; v += 4) {
+    const __m512d a = _mm512_loadu_pd(y + 3 * v);
+    const __m256d b = _mm256_loadu_pd(y + 3 * v + 8);
+    lo8 = _mm512_maskz_min_pd(0xff, lo8, a);
+    hi8 = _mm512_maskz_max_pd(0xff, hi8, a);
+    lo4 = _mm256_min_pd(lo4, b);
+    hi4 = _mm256_max_pd(hi4, b);
+  }
+  alignas(64) double l[12], h[12];
+  _mm512_store_pd(l, lo8);
+  _mm256_store_pd(l + 8, lo4);
+  _mm512_store_pd(h, hi8);
+  _mm256_store_pd(h + 8, hi4);
+  for (int k = 0; k < 12; ++k) {
+    lo[k % 3] = std::min(lo[k % 3], l[k]);
+    hi[k % 3] = std::max(hi[k % 3], h[k]);
+  }
+  return n4;
+}
+CELLFLOW_AVX512 std::size_t convert_positions_avx512(const double* y, std::size_t num_vertices,
+                                                     const double* c, float* y4) {
+  const __m512d c8 = _mm512_setr_pd(c[0], c[1], c[2], c[0], c[1], c[2], c[0], c[1]);
+  const __m256d c4 = _mm256_setr_pd(c[2], c[0], c[1], c[2]);
+  // (x0 y0 z0 x1 y1 z1 x2 y2 | z2 x3 y3 z3 0 0 0 0) -> (x y z 0) x 4; element 12 is a zero
+  const __m512i spread = _mm512_setr_epi32(0, 1, 2, 12, 3, 4, 5, 12, 6, 7, 8, 12, 9, 10, 11, 12);
+  const std::size_t n4 = num_vertices / 4 * 4;
+  for (std::size_t v = 0; v < n4; v += 4) {
+    const __m256 first = _mm512_maskz_cvtpd_ps(0xff, _mm512_sub_pd(_mm512_loadu_pd(y + 3 * v), c8));
+    const __m128 last = _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_loadu_pd(y + 3 * v + 8), c4));
+    const __m512 packed =
+        _mm512_maskz_insertf32x8(0xffff, _mm512_maskz_insertf32x8(0xffff, _mm512_setzero_ps(), first, 0),
+                                 _mm256_zextps128_ps256(last), 1);
+    _mm512_storeu_ps(y4 + 4 * v, _mm512_maskz_permutexvar_ps(0xffff, spread, packed));
+  }
+  return n4;
+}
+CELLFLOW_AVX512 std::size_t add_float_forces_avx512(const float* acc, std::size_t num_vertices,
+                                                    double* forces) {
+  // (x y z 0) x 4 -> (x0 y0 z0 x1 y1 z1 x2 y2 | z2 x3 y3 z3)
+  const __m512i pick = _mm512_setr_epi32(0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, 0, 0, 0, 0);
+  const std::size_t n4 = num_vertices / 4 * 4;
+  for (std::size_t v = 0; v < n4; v += 4) {
+    const __m512 a = _mm512_maskz_permutexvar_ps(0xffff, pick, _mm512_loadu_ps(acc + 4 * v));
+    double* f = forces + 3 * v;
+    _mm512_storeu_pd(f, _mm512_add_pd(_mm512_loadu_pd(f),
+                                      _mm512_maskz_cvtps_pd(0xff, _mm512_maskz_extractf32x8_ps(0xff, a, 0))));
+    _mm256_storeu_pd(f + 8, _mm256_add_pd(_mm256_loadu_pd(f + 8),
+                                          _mm256_cvtps_pd(_mm512_maskz_extractf32x4_ps(0xf, a, 2))));
+  }
+  return n4;
+}
+#undef CELLFLOW_AVX512
+#endif
+
 // y4 = (y - c, 0) in float, c the centre of the bounding box of y. SSE2
-// (every x86-64): min / max, the differences and the conversions are exact
-// IEEE operations, so any grouping gives the same bits; as scalar loops they
-// were 4 % (flow cell) to 9 % (196k-tet box) of a force call.
+// (every x86-64) and AVX-512 steps: min / max, the differences and the
+// conversions are exact IEEE operations, so any grouping gives the same
+// bits; as scalar loops they were 4 % (flow cell) to 9 % (196k-tet box) of
+// a force call.
 void float_positions(const double* y, std::size_t num_vertices, float* y4) {
   double lo[3] = {0.0, 0.0, 0.0}, hi[3] = {0.0, 0.0, 0.0};
   if (num_vertices > 0) {
@@ -1003,10 +1072,13 @@ void float_positions(const double* y, std::size_t num_vertices, float* y4) {
   }
   std::size_t v = 1;
 #if defined(__x86_64__)
+  const bool avx512 = best_tet_simd() == TetSimd::kAvx512;
+  if (avx512) v = std::max<std::size_t>(v, bounds_avx512(y, num_vertices, lo, hi));
   // Two vertices (x y | z x | y z) a step, three pairs of running bounds.
   __m128d lo_xy = _mm_set_pd(lo[1], lo[0]), lo_zx = _mm_set_pd(lo[0], lo[2]),
           lo_yz = _mm_set_pd(lo[2], lo[1]);
-  __m128d hi_xy = lo_xy, hi_zx = lo_zx, hi_yz = lo_yz;
+  __m128d hi_xy = _mm_set_pd(hi[1], hi[0]), hi_zx = _mm_set_pd(hi[0], hi[2]),
+          hi_yz = _mm_set_pd(hi[2], hi[1]);
   for (; v + 2 <= num_vertices; v += 2) {
     const double* p = y + 3 * v;
     const __m128d xy = _mm_loadu_pd(p), zx = _mm_loadu_pd(p + 2), yz = _mm_loadu_pd(p + 4);
@@ -1035,40 +1107,43 @@ void float_positions(const double* y, std::size_t num_vertices, float* y4) {
       hi[i] = std::max(hi[i], y[3 * v + i]);
     }
   }
-  const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
-  std::size_t first_scalar = 0;
+  // + 0.0 turns a -0 centre into +0: c then does not depend on which signed
+  // zero the bounds kept (min and max of +-0 depend on the order).
+  const double c[3] = {0.5 * (lo[0] + hi[0]) + 0.0, 0.5 * (lo[1] + hi[1]) + 0.0, 0.5 * (lo[2] + hi[2]) + 0.0};
+  std::size_t u = 0;
 #if defined(__x86_64__)
+  if (avx512) u = convert_positions_avx512(y, num_vertices, c, y4);
   // (x - c_x, y - c_y) and (z - c_z, 0 - 0) converted, packed to (x, y, z, 0).
   const __m128d c_xy = _mm_set_pd(c[1], c[0]), c_z = _mm_set_sd(c[2]);
-  for (std::size_t u = 0; u + 1 < num_vertices; ++u) {
+  for (; u < num_vertices; ++u) {
     const double* p = y + 3 * u;
     const __m128 xy = _mm_cvtpd_ps(_mm_sub_pd(_mm_loadu_pd(p), c_xy));
     const __m128 z = _mm_cvtpd_ps(_mm_sub_pd(_mm_load_sd(p + 2), c_z));
     _mm_store_ps(y4 + 4 * u, _mm_movelh_ps(xy, z));
   }
-  first_scalar = num_vertices > 0 ? num_vertices - 1 : 0;
 #endif
-  for (std::size_t u = first_scalar; u < num_vertices; ++u) {
+  for (; u < num_vertices; ++u) {
     for (int i = 0; i < 3; ++i) y4[4 * u + i] = static_cast<float>(y[3 * u + i] - c[i]);
     y4[4 * u + 3] = 0.0f;
   }
 }
 
 // forces (3 doubles per vertex) += acc (4 floats per vertex), one double
-// add per component (SSE2 conversions: exact, the same bits as scalar code).
+// add per component (exact conversions: the same bits as scalar code).
 void add_float_forces(const float* acc, std::size_t num_vertices, double* forces) {
+  std::size_t v = 0;
 #if defined(__x86_64__)
-  for (std::size_t v = 0; v < num_vertices; ++v) {
+  if (best_tet_simd() == TetSimd::kAvx512) v = add_float_forces_avx512(acc, num_vertices, forces);
+  for (; v < num_vertices; ++v) {
     const __m128 a = _mm_load_ps(acc + 4 * v);
     double* f = forces + 3 * v;
     _mm_storeu_pd(f, _mm_add_pd(_mm_loadu_pd(f), _mm_cvtps_pd(a)));
     f[2] += static_cast<double>(acc[4 * v + 2]);
   }
-#else
-  for (std::size_t v = 0; v < num_vertices; ++v) {
+#endif
+  for (; v < num_vertices; ++v) {
     for (int i = 0; i < 3; ++i) forces[3 * v + i] += static_cast<double>(acc[4 * v + i]);
   }
-#endif
 }
 
 // A body without its float copies (assembled by hand) gets a blocked copy.

@@ -3,9 +3,10 @@
 // predicted state; a step that does not converge is halved, recursively, up
 // to a given number of times.
 //
-// Predictor: the better (lower Pi under the new obstacles) of
+// Predictor: the best (lowest Pi under the new obstacles) of
 //   - the previous displacement increment extrapolated linearly to the new
-//     load, y + (y - y_prev) (t_new - t) / (t - t_prev), and
+//     load, y + (y - y_prev) (t_new - t) / (t - t_prev),
+//   - the quadratic through the last three equilibria at t_new, and
 //   - the current state,
 // each also with its contact vertices pushed back along the obstacle normal
 // to no deeper inside the penalty range than they were at the last
@@ -81,6 +82,9 @@ class LoadPath {
   std::vector<double> positions_, previous_positions_;
   double load_ = 0.0, previous_load_ = 0.0;
   bool has_previous_ = false;
+  std::vector<double> older_positions_;  // the equilibrium before previous_positions_
+  double older_load_ = 0.0;
+  bool has_older_ = false;
   ContactEnforcement enforcement_;
   contact::ContactOffsets offsets_, previous_offsets_;  // at the current and the previous equilibrium
 };

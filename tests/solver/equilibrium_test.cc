@@ -150,6 +150,51 @@ TEST(Equilibrium, NewtonConvergesQuadraticallyNearTheSolution) {
   EXPECT_GE(checked, 2);
 }
 
+// A lagged elastic tangent (kept while Newton contracts the residual by 0.3
+// per iteration, also from one load step to the next) reaches the
+// equilibrium of the fresh tangent, to the solve's tolerance, with fewer
+// assemblies than Newton iterations.
+TEST(Equilibrium, LaggedTangentReachesTheEquilibriumOfTheFreshOne) {
+  const Problem p = make_problem(300, 0.5);
+  std::vector<std::vector<double>> states;
+  std::vector<double> reactions;
+  int lagged_assemblies = 0, lagged_iterations = 0;
+  for (const double contraction : {0.0, 0.3}) {
+    EquilibriumOptions o = options(1e-9);
+    o.lagged_tangent_contraction = contraction;
+    EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, o);
+    LoadPath path(
+        solver, [&](double t) { return p.plates(t); }, p.mesh.positions_m, 0.0);
+    int assemblies = 0, iterations = 0;
+    double reaction = 0.0;
+    for (int i = 1; i <= 6; ++i) {
+      const LoadStepReport step = path.advance_to(2.0 * kRadius * 0.2 * i / 6, 5);
+      ASSERT_TRUE(step.converged) << "contraction " << contraction << ": " << step.message;
+      assemblies += step.last.tangent_assemblies;
+      iterations += step.last.newton_iterations;
+      if (contraction == 0.0) {
+        EXPECT_EQ(step.last.tangent_assemblies, step.last.newton_iterations);
+      }
+      reaction = step.last.contact.upper_plate_reaction_n;
+    }
+    if (contraction > 0.0) {
+      lagged_assemblies = assemblies;
+      lagged_iterations = iterations;
+    }
+    states.push_back(path.positions_m());
+    reactions.push_back(reaction);
+  }
+  std::printf("lagged tangent: %d assemblies for %d Newton iterations\n", lagged_assemblies,
+              lagged_iterations);
+  EXPECT_LT(lagged_assemblies, lagged_iterations);
+  double largest = 0.0;
+  for (std::size_t i = 0; i < states[0].size(); ++i)
+    largest = std::max(largest, std::abs(states[0][i] - states[1][i]));
+  EXPECT_LT(largest, 1e-6 * kRadius);
+  EXPECT_GT(reactions[0], 0.0);
+  EXPECT_NEAR(reactions[1], reactions[0], 1e-6 * reactions[0]);
+}
+
 // The linear solves of a mesh above ~2000 vertices run as one parallel
 // region (physics/solver/pcg.cc); two threads must reach the equilibrium one
 // thread reaches, to the solve's tolerance (the sums are split differently,

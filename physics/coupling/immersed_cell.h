@@ -88,6 +88,15 @@ struct CouplingWorkspace {
 struct ImmersedCells {
   std::vector<ImmersedCell> cells;
   CouplingWorkspace workspace;
+  // Viscosity contrast: the relative spreading weight of a node by its phase
+  // (index = the fluid's phase, 0 the suspending fluid; phases past the end
+  // weigh 1). When set and the fluid has a phase field, each point's kernel
+  // weights are multiplied by the weight of their node's phase and the
+  // stencil renormalised to its mass in the fluid, F(x) = f w(x) g(x) sum_y
+  // w(y) / sum_y w(y) g(y): the point's force is kept and its share in the
+  // inside of a cell is scaled by g (docs/accuracy/viscosity_contrast.md).
+  // Serial over the points, in order. Empty: the plain kernel (ibm::spread).
+  std::vector<double> phase_spread_weights;
 
   std::size_t size() const { return cells.size(); }
   ImmersedCell& operator[](std::size_t i) { return cells[i]; }

@@ -72,10 +72,11 @@ struct AdvectReport {
 // the points are bit for bit those of the spread (the flow step spreads at
 // X(t) and interpolates u(t) at the same X(t)), else it builds new ones.
 struct CouplingWorkspace {
-  std::vector<double> points;      // of the last spread (stencils are built for these)
-  std::vector<double> forces;      // of the last spread
-  std::vector<double> query;       // of the last advect
-  std::vector<double> velocities;  // interpolated at `query`
+  std::vector<double> points;               // of the last spread (stencils are built for these)
+  std::vector<double> forces;               // of the last spread
+  std::vector<double> renormalised_forces;  // of the last phase-weighted spread
+  std::vector<double> query;                // of the last advect
+  std::vector<double> velocities;           // interpolated at `query`
   ibm::StencilSet stencils;
   bool stencils_valid = false;
   std::vector<elastic::ElasticEvaluation> evaluations;
@@ -95,7 +96,7 @@ struct ImmersedCells {
   // stencil renormalised to its mass in the fluid, F(x) = f w(x) g(x) sum_y
   // w(y) / sum_y w(y) g(y): the point's force is kept and its share in the
   // inside of a cell is scaled by g (docs/accuracy/viscosity_contrast.md).
-  // Serial over the points, in order. Empty: the plain kernel (ibm::spread).
+  // Empty: the plain kernel (ibm::spread) alone.
   std::vector<double> phase_spread_weights;
 
   std::size_t size() const { return cells.size(); }

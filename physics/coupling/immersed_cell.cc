@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <span>
 #include <utility>
 
 namespace cellflow::coupling {
@@ -139,6 +141,49 @@ const std::vector<double>& coupled_points(ImmersedCell& cell) {
   return cell.markers_lattice;
 }
 
+// F(x) = g(x) sum_p (f_p sum_y w_p(y) / sum_y w_p(y) g(y)) w_p(x), g the
+// weight of the node's phase (ImmersedCells::phase_spread_weights), sums over
+// the stencil's nodes in the fluid. g depends on the node only, so this is
+// the plain (parallel) spread of the renormalised forces, then each node of
+// a weighted phase scaled by its g: the nodes inside a cell lie within the
+// supports just zeroed and spread, so nothing else in the field is scaled.
+template <class T>
+void spread_phase_weighted(ImmersedCells& cells, lb::Fluid& fluid, int width, int threads) {
+  CouplingWorkspace& ws = cells.workspace;
+  const std::span<const std::uint8_t> phases = fluid.phases();
+  const std::vector<double>& weight_of_phase = cells.phase_spread_weights;
+  auto weight = [&](std::uint8_t phase) {
+    return phase < weight_of_phase.size() ? weight_of_phase[phase] : 1.0;
+  };
+  ws.renormalised_forces.resize(ws.forces.size());
+  for (std::size_t p = 0; p < ws.stencils.points.size(); ++p) {
+    const ibm::PointStencil& st = ws.stencils.points[p];
+    double mass = 0.0, weighted = 0.0;
+    if (st.finite) {
+      for (int c = 0; c < width; ++c) {
+        for (int b = st.y_begin; b < st.y_end; ++b) {
+          for (int a = 0; a < width; ++a) {
+            const double w = st.wx[a] * st.wy[b] * st.wz[c];
+            mass += w;
+            weighted += w * weight(phases[fluid.node(st.x[a], st.y[b], st.z[c])]);
+          }
+        }
+      }
+    }
+    const double norm = weighted > 0.0 ? mass / weighted : 0.0;
+    for (int d = 0; d < 3; ++d) ws.renormalised_forces[3 * p + d] = norm * ws.forces[3 * p + d];
+  }
+  lb::VectorField<T> field = fluid.force_field<T>();
+  ibm::spread<T>(ws.stencils, ws.renormalised_forces, field, threads);
+  for (std::size_t node = 0; node < phases.size(); ++node) {
+    if (phases[node] == 0) continue;
+    const T g = static_cast<T>(weight(phases[node]));
+    field.x[node] *= g;
+    field.y[node] *= g;
+    field.z[node] *= g;
+  }
+}
+
 // Zeroes the union of the previous supports, then spreads the points of all
 // cells in one pass.
 template <class T>
@@ -168,7 +213,11 @@ void spread_all(ImmersedCells& cells, lb::Fluid& fluid, ibm::Kernel kernel, int 
   }
   ibm::build_stencils(kernel, grid, ws.points, ws.stencils, threads);
   ws.stencils_valid = true;
-  ibm::spread<T>(ws.stencils, ws.forces, fluid.force_field<T>(), threads);
+  if (!cells.phase_spread_weights.empty() && !fluid.phases().empty()) {
+    spread_phase_weighted<T>(cells, fluid, width, threads);
+  } else {
+    ibm::spread<T>(ws.stencils, ws.forces, fluid.force_field<T>(), threads);
+  }
 }
 
 // After the velocities of the coupled points are in cell.velocities_lattice:

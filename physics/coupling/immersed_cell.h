@@ -73,10 +73,11 @@ struct AdvectReport {
 // the points are bit for bit those of the spread (the flow step spreads at
 // X(t) and interpolates u(t) at the same X(t)), else it builds new ones.
 struct CouplingWorkspace {
-  std::vector<double> points;      // of the last spread (stencils are built for these)
-  std::vector<double> forces;      // of the last spread
-  std::vector<double> query;       // of the last advect
-  std::vector<double> velocities;  // interpolated at `query`
+  std::vector<double> points;               // of the last spread (stencils are built for these)
+  std::vector<double> forces;               // of the last spread
+  std::vector<double> renormalised_forces;  // of the last phase-weighted spread
+  std::vector<double> query;                // of the last advect
+  std::vector<double> velocities;           // interpolated at `query`
   ibm::StencilSet stencils;
   bool stencils_valid = false;
   std::vector<elastic::ElasticEvaluation> evaluations;
@@ -89,6 +90,15 @@ struct CouplingWorkspace {
 struct ImmersedCells {
   std::vector<ImmersedCell> cells;
   CouplingWorkspace workspace;
+  // Viscosity contrast: the relative spreading weight of a node by its phase
+  // (index = the fluid's phase, 0 the suspending fluid; phases past the end
+  // weigh 1). When set and the fluid has a phase field, each point's kernel
+  // weights are multiplied by the weight of their node's phase and the
+  // stencil renormalised to its mass in the fluid, F(x) = f w(x) g(x) sum_y
+  // w(y) / sum_y w(y) g(y): the point's force is kept and its share in the
+  // inside of a cell is scaled by g (docs/accuracy/viscosity_contrast.md).
+  // Empty: the plain kernel (ibm::spread) alone.
+  std::vector<double> phase_spread_weights;
 
   std::size_t size() const { return cells.size(); }
   ImmersedCell& operator[](std::size_t i) { return cells[i]; }

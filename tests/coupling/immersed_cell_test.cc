@@ -10,9 +10,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <utility>
 #include <vector>
 
 #include "physics/elastic/elastic_body.h"
@@ -562,6 +565,80 @@ TEST(ImmersedCell, ScaledMarkersKeepTheFirstMomentAndFollowALinearFlow) {
       ASSERT_NEAR(immersed.velocities_lattice[3 * v + d], expected[d], 1e-12)
           << "vertex " << v << " dir " << d;
     }
+  }
+}
+
+// Viscosity contrast (ImmersedCells::phase_spread_weights): with a phase
+// field a point's kernel weights on phase-1 nodes are scaled by g and the
+// stencil renormalised, so the point's force is kept and its inside share
+// falls by g against the outside share; without weights the plain spread.
+TEST(ImmersedCell, PhaseSpreadWeightMovesForceOutOfTheInsideAndKeepsIt) {
+  const Cell cell = make_cell(300);
+  const units::Units u = test_units();
+  lb::FluidParams fp;
+  fp.nx = fp.ny = fp.nz = kBox;
+  fp.tau = 1.0;
+  fp.force_field = true;
+  fp.velocity_field = true;
+  fp.precision = lb::Precision::kDouble;
+  fp.phase_taus = {0.525};
+  StatusOr<lb::Fluid> made = lb::make_fluid(fp);
+  ASSERT_TRUE(made.ok()) << made.status().to_string();
+  lb::Fluid fluid = std::move(*made);
+  const double centre[3] = {0.5 * kBox, 0.5 * kBox, 0.5 * kBox};
+  // Inside: nodes (at i + 1/2) within 4 dx of the centre.
+  std::vector<std::uint8_t> phases(fluid.num_nodes(), 0);
+  for (int k = 0; k < kBox; ++k)
+    for (int j = 0; j < kBox; ++j)
+      for (int i = 0; i < kBox; ++i) {
+        const double r = std::hypot(i + 0.5 - centre[0], j + 0.5 - centre[1], k + 0.5 - centre[2]);
+        phases[fluid.node(i, j, k)] = r < 4.0 ? 1 : 0;
+      }
+  ASSERT_TRUE(lb::set_phases(fluid, phases).ok());
+
+  ImmersedCells cells;
+  ImmersedCell& immersed = add_cell(cells, cell.mesh, cell.body, u, centre);
+  // One surface vertex (on the 4 dx sphere, i.e. on the jump) pushes.
+  std::size_t pusher = 0;
+  while (!cell.mesh.on_surface[pusher]) ++pusher;
+  std::fill(immersed.forces_lattice.begin(), immersed.forces_lattice.end(), 0.0);
+  const double force[3] = {1e-3, -2e-3, 0.5e-3};
+  for (int d = 0; d < 3; ++d) immersed.forces_lattice[3 * pusher + d] = force[d];
+
+  // Total force and the inside's part of it, per component.
+  auto shares = [&](std::array<double, 3>& total, std::array<double, 3>& inside) {
+    const lb::VectorField<const double> f = std::as_const(fluid).force_field<double>();
+    total = {0, 0, 0};
+    inside = {0, 0, 0};
+    for (std::size_t n = 0; n < fluid.num_nodes(); ++n) {
+      const double v[3] = {f.x[n], f.y[n], f.z[n]};
+      for (int d = 0; d < 3; ++d) {
+        total[d] += v[d];
+        if (phases[n]) inside[d] += v[d];
+      }
+    }
+  };
+  std::array<double, 3> total1, inside1, total_g, inside_g, total_one, inside_one;
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
+  shares(total1, inside1);
+  // Weight 1 in both phases: the weighted path gives the plain spread.
+  cells.phase_spread_weights = {1.0, 1.0};
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
+  shares(total_one, inside_one);
+  const double g = 0.25;
+  cells.phase_spread_weights = {1.0, g};
+  spread_forces(cells, fluid, ibm::Kernel::kPeskin4, 1);
+  shares(total_g, inside_g);
+  for (int d = 0; d < 3; ++d) {
+    EXPECT_NEAR(total1[d], force[d], 1e-15);
+    EXPECT_NEAR(total_g[d], force[d], 1e-15);
+    EXPECT_NEAR(inside_one[d], inside1[d], 1e-15);
+    // Both sides of the jump take part, and the ratio inside / outside falls by g.
+    ASSERT_GT(std::abs(inside1[d]), 0.05 * std::abs(force[d]));
+    ASSERT_GT(std::abs(force[d] - inside1[d]), 0.05 * std::abs(force[d]));
+    const double ratio1 = inside1[d] / (total1[d] - inside1[d]);
+    const double ratio_g = inside_g[d] / (total_g[d] - inside_g[d]);
+    EXPECT_NEAR(ratio_g / ratio1, g, 1e-12);
   }
 }
 

@@ -493,6 +493,8 @@ ShearFlowResult run_attempt(const PlannedShearFlow& planned, const ShearFlowCall
       n.elastic_single_precision ? elastic::ForcePrecision::kFloat : elastic::ForcePrecision::kDouble;
   // s = 1 - offset dx / R (numerics.hydrodynamic_radius_offset).
   immersed.marker_scale = 1.0 - radius_offset(n) * u.dx_m() / radius;
+  // lambda != 1: less of the surface force in the inside (phase 1) for lambda < 1.
+  if (contrast) run.cells.phase_spread_weights = {1.0, contrast_spread_weight(params.viscosity_ratio)};
   run.x_si.resize(3 * nv);
   for (std::size_t v = 0; v < nv; ++v) {
     if (run.mesh.on_surface[v] && std::abs(run.mesh.positions_m[3 * v + 2]) < kTankTreadBand * radius) {

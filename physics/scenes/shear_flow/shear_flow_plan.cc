@@ -474,4 +474,8 @@ double radius_offset(const ShearFlowNumerics& numerics) {
                                                    : numerics.hydrodynamic_radius_offset;
 }
 
+double contrast_spread_weight(double viscosity_ratio) {
+  return std::pow(viscosity_ratio, kContrastSpreadExponent);
+}
+
 }  // namespace cellflow::scenes

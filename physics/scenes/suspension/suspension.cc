@@ -8,7 +8,9 @@
 // has a phase per distinct lambda (tau_in = 1/2 + lambda (tau - 1/2)) and the
 // nodes inside each cell are marked (physics/marking: exact at the start, the
 // fast band update every numerics.marking_every_steps steps after the
-// vertices moved); with every lambda = 1 nothing is marked.
+// vertices moved), and the spreading weighs each phase's nodes by
+// contrast_spread_weight(lambda) (serial over the points); with every lambda
+// = 1 nothing is marked and the spread is the plain parallel one.
 //
 // Checkpoint and restart (suspension_checkpoint.h): at sample steps that are
 // marking steps, the state the loop carries from step to step; a resume
@@ -572,6 +574,13 @@ SuspensionResult run_suspension(const PlannedSuspension& planned, const Suspensi
         n.elastic_single_precision ? elastic::ForcePrecision::kFloat : elastic::ForcePrecision::kDouble;
     // s = 1 - offset dx / R (numerics.flow.hydrodynamic_radius_offset).
     cell.marker_scale = 1.0 - radius_offset(n) * u.dx_m() / kind.radius_m;
+  }
+  // lambda != 1: the spread forces' share in each phase as in the single-cell
+  // scene (contrast_spread_weight); none with every lambda = 1.
+  if (!phase_lambdas.empty()) {
+    run.cells.phase_spread_weights = {1.0};
+    for (const double lambda : phase_lambdas)
+      run.cells.phase_spread_weights.push_back(contrast_spread_weight(lambda));
   }
 
   // Checkpoint and restart (suspension_checkpoint.h).

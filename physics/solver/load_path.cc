@@ -166,6 +166,16 @@ bool LoadPath::try_step(double target, int depth, int max_depth, LoadStepReport&
       if (!eq.converged) break;
     }
   }
+  if (eq.converged && state_check_) {
+    std::string why = state_check_(target, y);
+    if (!why.empty()) {
+      offsets_ = saved;
+      report.state_rejected = true;
+      report.message = std::move(why);
+      report.last = std::move(eq);
+      return false;  // not halved: a shorter step does not make this state trusted
+    }
+  }
   if (!eq.converged) offsets_ = saved;
   if (eq.converged) {
     if (has_previous_) {
@@ -194,7 +204,11 @@ bool LoadPath::try_step(double target, int depth, int max_depth, LoadStepReport&
 LoadStepReport LoadPath::advance_to(double target_load_m, int max_step_splits) {
   LoadStepReport report;
   report.converged = try_step(target_load_m, 0, max_step_splits, report);
-  if (!report.converged) {
+  if (!report.converged && report.state_rejected) {
+    report.cause = FailureCause::kNone;  // converged, not trusted: the message names why
+    if (report.step_splits > 0)
+      report.message += " (after " + std::to_string(report.step_splits) + " step splits)";
+  } else if (!report.converged) {
     report.cause = report.last.cause;
     report.message = report.last.message;
     if (report.step_splits > 0)

@@ -24,9 +24,20 @@
 // multipliers of the last one are the best guess of the next). The plain
 // penalty (no updates) leaves each loaded vertex at the gap where the law
 // balances its force.
+//
+// State check. A caller may reject a converged state that it does not trust
+// (the quasi-static scenes: an element crushed below the J guard). The check
+// runs on every converged sub-step, not only at the load points: past a
+// volume collapse the equilibrium path of eq. 5 loses stability (the
+// nu = 0.45 curve near deformation 0.897, docs/stability), Newton then fails
+// however short the step, and the halvings would spend the run there
+// (10 splits x 200 Newton iterations: 123 s of CPU) to end with a
+// non-convergence instead of the collapse that caused it. A rejected state
+// ends the load step at once, without halving.
 #pragma once
 
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -38,6 +49,9 @@ namespace cellflow::solver {
 
 // The obstacles at load parameter t (metres of travel).
 using ObstaclesAtLoad = std::function<contact::Obstacles(double load_m)>;
+
+// Why a converged state at load parameter `load_m` is not accepted; empty: accepted.
+using StateCheck = std::function<std::string(double load_m, std::span<const double> positions_m)>;
 
 struct ContactEnforcement {
   bool augmented_lagrangian = false;  // false: the plain penalty
@@ -51,10 +65,11 @@ struct LoadStepReport {
   FailureCause cause = FailureCause::kNone;
   int newton_iterations = 0;  // all sub-steps and failed attempts
   int cg_iterations = 0;
-  int step_splits = 0;       // halvings used
-  int contact_updates = 0;   // Uzawa updates of the offsets (all sub-steps)
-  double gap_error_m = 0.0;  // of the final state (augmented Lagrangian), contact::gap_error
-  EquilibriumReport last;    // of the final sub-step
+  bool state_rejected = false;  // the StateCheck refused a converged state (message says why)
+  int step_splits = 0;          // halvings used
+  int contact_updates = 0;      // Uzawa updates of the offsets (all sub-steps)
+  double gap_error_m = 0.0;     // of the final state (augmented Lagrangian), contact::gap_error
+  EquilibriumReport last;       // of the final sub-step
 };
 
 class LoadPath {
@@ -66,6 +81,9 @@ class LoadPath {
   // Advances the equilibrium to `target_load_m`. On failure the state stays at
   // the last converged sub-step.
   LoadStepReport advance_to(double target_load_m, int max_step_splits);
+
+  // Applied to every converged sub-step from now on (see the file comment).
+  void set_state_check(StateCheck check) { state_check_ = std::move(check); }
 
   const std::vector<double>& positions_m() const { return positions_; }
   double load_m() const { return load_; }
@@ -86,6 +104,7 @@ class LoadPath {
   double older_load_ = 0.0;
   bool has_older_ = false;
   ContactEnforcement enforcement_;
+  StateCheck state_check_;
   contact::ContactOffsets offsets_, previous_offsets_;  // at the current and the previous equilibrium
 };
 

@@ -12,6 +12,8 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <span>
+#include <string>
 
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/solver/load_path.h"
@@ -257,6 +259,41 @@ TEST(LoadPath, StepThatCannotBeSplitFurtherFails) {
   EXPECT_NE(step.message.find("after 2 step splits"), std::string::npos) << step.message;
   // the state stays at the last converged load
   EXPECT_EQ(path.load_m(), 0.0);
+}
+
+// A converged sub-step that the state check refuses ends the load step at
+// once: no further halving (a shorter step cannot make that state trusted),
+// the state stays at the last accepted load, and the message is the check's.
+TEST(LoadPath, RejectedSubStepEndsTheStepWithoutMoreSplits) {
+  const Problem p = make_problem(300, 1.0);
+  EquilibriumSolver generous(p.body, p.surface, p.mesh.positions_m, options(1e-6));
+  const std::vector<double> start = compressed_state(p, generous, 0.1);
+  EquilibriumOptions o = options(1e-6);
+  o.max_newton_iterations = 5;  // too few for a jump from 10 % to 40 % compression
+  EquilibriumSolver strict(p.body, p.surface, p.mesh.positions_m, o);
+  LoadPath path(
+      strict, [&](double t) { return p.plates(t); }, start, 0.2 * kRadius);
+  std::vector<double> checked_loads;
+  path.set_state_check([&](double load_m, std::span<const double> positions_m) -> std::string {
+    EXPECT_EQ(positions_m.size(), start.size());
+    checked_loads.push_back(load_m);
+    return load_m > 0.45 * kRadius ? "refused at " + std::to_string(load_m / kRadius) + " R" : "";
+  });
+  const LoadStepReport step = path.advance_to(0.8 * kRadius, 8);
+  EXPECT_FALSE(step.converged);
+  EXPECT_TRUE(step.state_rejected);
+  EXPECT_EQ(step.cause, FailureCause::kNone);
+  // The halvings go on until a sub-step converges; those below 0.45 R are
+  // accepted, and the first one above it, refused, is the last checked.
+  ASSERT_GE(checked_loads.size(), 1u);
+  for (std::size_t k = 0; k + 1 < checked_loads.size(); ++k) EXPECT_LE(checked_loads[k], 0.45 * kRadius);
+  EXPECT_GT(checked_loads.back(), 0.45 * kRadius);
+  EXPECT_EQ(step.message.rfind("refused at ", 0), 0u) << step.message;
+  EXPECT_NE(step.message.find("step splits)"), std::string::npos) << step.message;
+  // the state stays at the last accepted sub-step
+  EXPECT_DOUBLE_EQ(path.load_m(),
+                   checked_loads.size() > 1 ? checked_loads[checked_loads.size() - 2] : 0.2 * kRadius);
+  EXPECT_LT(path.load_m(), checked_loads.back());
 }
 
 TEST(LoadPath, HalvedStepsReachTheTarget) {

@@ -109,6 +109,16 @@ struct QuasiStaticOptions {
   // the uniform mesh; 0: uniform; else in [1e-3, 1] R.
   std::optional<double> pole_spacing_m;
   double pole_grading_growth = mesh::PoleGrading{}.growth;  // in [0.1, 1]
+  // The finite element. kQuadraticTet: a node at every edge of the linear
+  // mesh (on the sphere at the surface), the 10-node tet with the energy of
+  // eq. 5 at 4 quadrature points (elastic_body.h); `volumetric` is then not
+  // used (the volumetric term is evaluated at each point). The plates and the
+  // probe act on every surface node, corners and mid-edge nodes alike (a
+  // plane touches the four flat sub-triangles of a 6-node face first at one
+  // of their vertices); the probe on the surface acts on those
+  // sub-triangles. The default penalty is sized for the node spacing, half
+  // the edge length. Measured in quasi_static.cc (kQuadraticTet notes).
+  elastic::Element element = elastic::Element::kLinearTet;
 };
 
 // Surface edges per contact radius at the poles of the default indentation mesh.

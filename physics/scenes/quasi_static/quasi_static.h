@@ -120,8 +120,8 @@ struct QuasiStaticOptions {
   // the edge length. Measured against the CalculiX references
   // (validation/fe/README.md, "Quadratic tetrahedra", 2026-12-02, 40 points
   // to 0.8, 1000 base vertices): w = 1 within 0.55 % from 0.06 on (linear
-  // 1.3 %) but 55 s against 0.9 s CPU; w = 0.25 leaves the CalculiX branch
-  // as the linear tet does (-4.4 % at 0.66, -12.6 % at 0.8; linear -1.5 %,
+  // -4.2 % at 0.06, within 1.3 % from 0.08) but 55 s against 0.9 s CPU;
+  // w = 0.25 leaves the CalculiX branch as the linear tet does (-4.4 % at 0.66, -12.6 % at 0.8; linear -1.5 %,
   // -10.0 %): the quadratic element does not remove that departure, so the
   // linear tet stays the default.
   elastic::Element element = elastic::Element::kLinearTet;

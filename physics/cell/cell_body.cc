@@ -4,6 +4,7 @@
 #include <string>
 #include <utility>
 
+#include "physics/mesh/quadratic_tets.h"
 #include "physics/mesh/tet_geometry.h"
 #include "physics/observables/shape.h"
 
@@ -11,7 +12,7 @@ namespace cellflow::cell {
 
 StatusOr<CellBody> build_cell_body(const CellParams& cell, elastic::VolumetricTerm volumetric,
                                    std::string_view field_prefix, Centring centring,
-                                   const mesh::PoleGrading& pole_grading) {
+                                   const mesh::PoleGrading& pole_grading, elastic::Element element) {
   StatusOr<mesh::TetMesh> built = build_cell_mesh(cell, field_prefix, pole_grading);
   if (!built.ok()) return built.status();
   CellBody out;
@@ -41,6 +42,12 @@ StatusOr<CellBody> build_cell_body(const CellParams& cell, elastic::VolumetricTe
     }
   }
 
+  if (element == elastic::Element::kQuadraticTet) {
+    mesh::MidEdgeProjection projection;
+    const bool generated_sphere = cell.mesh_file.empty() && !cell.mesh_bytes;
+    if (generated_sphere) projection.sphere_centre_m = std::array<double, 3>{0.0, 0.0, 0.0};
+    mesh::add_mid_edge_nodes(m, projection);
+  }
   out.materials = {cell.material, cell.nucleus ? cell.nucleus->material : cell.material};
   StatusOr<elastic::ElasticBody> body = elastic::make_elastic_body(m, out.materials, volumetric);
   if (!body.ok()) {

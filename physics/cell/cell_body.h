@@ -38,9 +38,14 @@ struct CellBody {
 // e.g. "shear_flow.cell."), centring, then elastic::make_elastic_body with
 // `volumetric` (errors prefixed with field_prefix less its trailing dot).
 // `pole_grading`: the generated sphere's grading towards its poles.
+// `element` kQuadraticTet adds a node per edge after the centring
+// (mesh::add_mid_edge_nodes; the surface ones on the sphere through the
+// edge's ends about the origin for a generated sphere, straight for a mesh
+// file) and builds the quadratic body (volumetric must then be kPerTet).
 StatusOr<CellBody> build_cell_body(const CellParams& cell, elastic::VolumetricTerm volumetric,
                                    std::string_view field_prefix = "cell.",
                                    Centring centring = Centring::kBoundingBox,
-                                   const mesh::PoleGrading& pole_grading = {});
+                                   const mesh::PoleGrading& pole_grading = {},
+                                   elastic::Element element = elastic::Element::kLinearTet);
 
 }  // namespace cellflow::cell

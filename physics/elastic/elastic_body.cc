@@ -21,15 +21,16 @@ namespace detail {
 
 // CSR lists of the tets around each vertex.
 void vertex_tets(std::span<const std::int32_t> tets, std::size_t num_vertices,
-                 std::vector<std::int64_t>& offsets, std::vector<std::int32_t>& incident) {
-  const std::int64_t num_tets = static_cast<std::int64_t>(tets.size() / 4);
+                 std::vector<std::int64_t>& offsets, std::vector<std::int32_t>& incident, int nodes_per_tet) {
+  const std::int64_t num_tets = static_cast<std::int64_t>(tets.size()) / nodes_per_tet;
   offsets.assign(num_vertices + 1, 0);
   for (const std::int32_t v : tets) ++offsets[v + 1];
   for (std::size_t v = 0; v < num_vertices; ++v) offsets[v + 1] += offsets[v];
   incident.resize(tets.size());
   std::vector<std::int64_t> next(offsets.begin(), offsets.end() - 1);
   for (std::int64_t t = 0; t < num_tets; ++t) {
-    for (int a = 0; a < 4; ++a) incident[next[tets[4 * t + a]]++] = static_cast<std::int32_t>(t);
+    for (int a = 0; a < nodes_per_tet; ++a)
+      incident[next[tets[nodes_per_tet * t + a]]++] = static_cast<std::int32_t>(t);
   }
 }
 
@@ -168,6 +169,31 @@ StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<con
   body.neo_hookean =
       std::all_of(body.mu2_pa.begin(), body.mu2_pa.end(), [](double mu2) { return mu2 == 0.0; });
   body.volumetric = volumetric;
+  if (!mesh.quadratic_tets.empty()) {
+    if (volumetric != VolumetricTerm::kPerTet) {
+      return invalid_argument(
+          "mesh: quadratic tetrahedra evaluate the volumetric term at each quadrature point (kPerTet); "
+          "the nodal average is for linear tets");
+    }
+    if (mesh.quadratic_tets.size() != 10 * num_tets) {
+      return invalid_argument("mesh.quadratic_tets has " + std::to_string(mesh.quadratic_tets.size()) +
+                              " entries, expected 10 per tetrahedron (" + std::to_string(10 * num_tets) +
+                              ")");
+    }
+    for (std::size_t k = 0; k < mesh.quadratic_tets.size(); ++k) {
+      const std::int32_t v = mesh.quadratic_tets[k];
+      if (v < 0 || static_cast<std::size_t>(v) >= num_vertices ||
+          (k % 10 < 4 && v != mesh.tets[4 * (k / 10) + k % 10])) {
+        return invalid_argument("mesh.quadratic_tets: tetrahedron " + std::to_string(k / 10) + " node " +
+                                std::to_string(k % 10) + " = " + std::to_string(v) +
+                                " is outside the vertices or not the corner of mesh.tets");
+      }
+    }
+    body.element = Element::kQuadraticTet;
+    body.quadratic_tets = mesh.quadratic_tets;
+    if (Status s = detail::build_quadratic_tets(body, x); !s.ok()) return s;
+    return body;
+  }
   if (volumetric == VolumetricTerm::kNodalAverage) {
     vertex_tets(body.tets, num_vertices, body.vertex_tet_offsets, body.vertex_tets);
     body.vertex_volume_m3.assign(num_vertices, 0.0);

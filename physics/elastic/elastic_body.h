@@ -32,6 +32,23 @@ enum class VolumetricTerm {
   kNodalAverage,
 };
 
+// The finite element of the body.
+enum class Element {
+  // 4-node tetrahedron, one F per tet (paper eq. 11-12).
+  kLinearTet,
+  // 10-node tetrahedron (mesh::TetMesh::quadratic_tets, VTK node order):
+  // quadratic shape functions N_a = L_a (2 L_a - 1) at the corners and
+  // N_ab = 4 L_a L_b at the mid-edge nodes (L the barycentric coordinates),
+  // the energy of eq. 5 integrated with the 4-point Gauss rule of degree 2
+  // (physics/elastic/quadratic_tet.cc). F, and so J, vary inside the tet:
+  // its strain is linear where the linear tet's is constant, and it bends.
+  // The volumetric term is evaluated at each quadrature point (kPerTet only).
+  kQuadraticTet,
+};
+
+// Quadrature points per quadratic tet.
+constexpr int kQuadraticTetPoints = 4;
+
 // Tets per lane block of the force loop (elastic_forces.cc) and of the
 // lane-blocked copies in ElasticBody.
 constexpr int kTetBlockLanes = 16;
@@ -68,7 +85,18 @@ struct ElasticBody {
   std::vector<std::int64_t> vertex_tet_offsets;
   std::vector<std::int32_t> vertex_tets;
 
+  // Element::kQuadraticTet only (the arrays above then hold the corner tets:
+  // V0 of the straight-sided tet, the moduli per tet): the 10 nodes per tet,
+  // and per tet and quadrature point q the reference gradients
+  // G_qa = dN_a/dX (30 = 10 nodes x 3, row-major, at
+  // quadrature_gradients[30 (kQuadraticTetPoints t + q)]) and the weights
+  // w_q |det dX/dxi| (sum over q: the curved tet's volume).
+  Element element = Element::kLinearTet;
+  std::vector<std::int32_t> quadratic_tets;
+  std::vector<double> quadrature_gradients, quadrature_weights_m3;
+
   std::size_t num_tets() const { return ref_volume_m3.size(); }
+  bool quadratic() const { return element == Element::kQuadraticTet; }
 };
 
 // (Re)builds block_b_matrix, block_vertices and the float copies from tets,
@@ -78,7 +106,12 @@ struct ElasticBody {
 void build_lane_blocks(ElasticBody& body);
 
 // Fails (kFailedPrecondition) on a tetrahedron with non-positive reference
-// volume, naming its index. `materials` is indexed by mesh::Region.
+// volume, naming its index. `materials` is indexed by mesh::Region. A mesh
+// with quadratic_tets gives an Element::kQuadraticTet body (kPerTet only;
+// fails on a quadrature point with non-positive det dX/dxi).
+// Every function below handles both elements; the quadratic one runs the
+// double loop on one thread (no lanes, no float copy: ForcePrecision and
+// TetSimd are ignored).
 StatusOr<ElasticBody> make_elastic_body(const mesh::TetMesh& mesh, std::span<const Material> materials,
                                         VolumetricTerm volumetric = VolumetricTerm::kPerTet);
 
@@ -187,13 +220,16 @@ class TangentAssembler {
  private:
   template <bool kMooneyRivlin>
   ElasticEvaluation assemble_impl(const double* positions_m, double* forces_n);
+  // Element::kQuadraticTet (quadratic_tet.cc): serial, 30x30 blocks.
+  template <bool kMooneyRivlin>
+  ElasticEvaluation assemble_quadratic(const double* positions_m, double* forces_n);
   // kNodalAverage: the rows g_a of G and C at positions_m, on `team` threads.
   void update_volumetric_operator(const double* positions_m, int team);
 
   const ElasticBody* body_;
   Eigen::SparseMatrix<double> stiffness_;
-  // 48 per tet: slot_[3 (16 t + 4 a + b) + j] is the index into valuePtr() of
-  // the entry (row 3 v_a, column 3 v_b + j) for local vertices a, b of tet t;
+  // 3 n^2 per tet (n = 4 nodes, 10 quadratic): slot_[3 (n^2 t + n a + b) + j] is the index into valuePtr() of
+  // the entry (row 3 v_a, column 3 v_b + j) for local nodes a, b of tet t;
   // rows 3 v_a + 1 and + 2 follow it (a column holds a vertex's rows together).
   std::vector<std::int64_t> slot_;
   // kNodalAverage: G by rows, row a over the patch of a (a and its

@@ -1228,13 +1228,18 @@ ElasticEvaluation evaluate_float(const ElasticBody& body, const double* y, doubl
 
 ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
                                      int threads) {
+  if (body.quadratic()) {
+    return detail::quadratic_forces(body, positions_m, forces_n, 0,
+                                    static_cast<std::int64_t>(body.num_tets()));
+  }
   if (body.neo_hookean) return evaluate<false, true>(body, positions_m, forces_n, threads);
   return evaluate<true, true>(body, positions_m, forces_n, threads);
 }
 
 ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* positions_m, double* forces_n,
                                      int threads, ForcePrecision precision) {
-  if (precision == ForcePrecision::kDouble) return add_elastic_forces(body, positions_m, forces_n, threads);
+  if (precision == ForcePrecision::kDouble || body.quadratic())
+    return add_elastic_forces(body, positions_m, forces_n, threads);
   const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
   const int team = team_size(threads, num_tets, kMinForceTetsPerThread);
   if (body.neo_hookean) {
@@ -1246,7 +1251,7 @@ ElasticEvaluation add_elastic_forces(const ElasticBody& body, const double* posi
 ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
                                               double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
                                               TetSimd simd, ForcePrecision precision) {
-  if (precision == ForcePrecision::kDouble) {
+  if (precision == ForcePrecision::kDouble || body.quadratic()) {
     return add_elastic_forces_of_range(body, positions_m, forces_n, begin_tet, end_tet, simd);
   }
   // kNodalAverage: as the double range, the whole volumetric energy and the range's isochoric part.
@@ -1258,6 +1263,7 @@ ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const dou
 ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const double* positions_m,
                                               double* forces_n, std::int64_t begin_tet, std::int64_t end_tet,
                                               TetSimd simd) {
+  if (body.quadratic()) return detail::quadratic_forces(body, positions_m, forces_n, begin_tet, end_tet);
   std::int64_t first_inverted = kNoTet;
   ElasticEvaluation result;
   // kNodalAverage: the pressures need every tet; the energy is then the
@@ -1279,6 +1285,10 @@ ElasticEvaluation add_elastic_forces_of_range(const ElasticBody& body, const dou
 }
 
 ElasticEvaluation elastic_energy(const ElasticBody& body, const double* positions_m, int threads) {
+  if (body.quadratic()) {
+    return detail::quadratic_forces(body, positions_m, nullptr, 0,
+                                    static_cast<std::int64_t>(body.num_tets()));
+  }
   if (body.neo_hookean) return evaluate<false, false>(body, positions_m, nullptr, threads);
   return evaluate<true, false>(body, positions_m, nullptr, threads);
 }
@@ -1332,6 +1342,7 @@ const char* tet_simd_name(TetSimd simd) {
 }
 
 VolumeRatioMinimum min_volume_ratio(const ElasticBody& body, const double* positions_m) {
+  if (body.quadratic()) return detail::quadratic_min_volume_ratio(body, positions_m);
   VolumeRatioMinimum minimum;
   for (std::size_t t = 0; t < body.num_tets(); ++t) {
     const double ratio = deformed_volume(positions_m, body.tets.data() + 4 * t) / body.ref_volume_m3[t];

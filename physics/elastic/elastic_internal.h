@@ -31,9 +31,20 @@ inline int team_size(int threads, std::int64_t num_tets, std::int64_t min_tets_p
   return static_cast<int>(std::min<std::int64_t>(requested, useful));
 }
 
-// CSR lists of the tets around each vertex (defined in elastic_body.cc).
+// CSR lists of the tets around each vertex (defined in elastic_body.cc);
+// `tets` holds nodes_per_tet indices per tet.
 void vertex_tets(std::span<const std::int32_t> tets, std::size_t num_vertices,
-                 std::vector<std::int64_t>& offsets, std::vector<std::int32_t>& incident);
+                 std::vector<std::int64_t>& offsets, std::vector<std::int32_t>& incident,
+                 int nodes_per_tet = 4);
+
+// Element::kQuadraticTet (defined in quadratic_tet.cc): the quadrature data
+// of body.quadratic_tets at the reference positions x (fails on a point with
+// det dX/dxi <= 0); energy and forces (forces may be null) of the tets
+// [begin, end); the smallest J over the quadrature points.
+Status build_quadratic_tets(ElasticBody& body, const double* x);
+ElasticEvaluation quadratic_forces(const ElasticBody& body, const double* y, double* forces,
+                                   std::int64_t begin, std::int64_t end);
+VolumeRatioMinimum quadratic_min_volume_ratio(const ElasticBody& body, const double* y);
 
 // kNodalAverage: the per-tet mean of the vertex pressures and the volumetric
 // energy (defined in elastic_forces.cc, where its equations are).

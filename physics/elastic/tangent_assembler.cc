@@ -34,9 +34,12 @@ kernel::TetParams tet_params(const ElasticBody& body, std::int64_t t) {
 TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
   const std::size_t num_vertices = body.num_vertices;
   const std::int64_t num_tets = static_cast<std::int64_t>(body.num_tets());
+  // The element's nodes: 4 per tet, or 10 for the quadratic tet.
+  const int npe = body.quadratic() ? 10 : 4;
+  const std::vector<std::int32_t>& elements = body.quadratic() ? body.quadratic_tets : body.tets;
   std::vector<std::int64_t> offsets;
   std::vector<std::int32_t> incident;
-  vertex_tets(body.tets, num_vertices, offsets, incident);
+  vertex_tets(elements, num_vertices, offsets, incident, npe);
   // Sorted patch (itself and its neighbours) of every vertex.
   std::vector<std::int64_t> patch_offsets(num_vertices + 1, 0);
   std::vector<std::int32_t> patches;
@@ -44,8 +47,8 @@ TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
   for (std::size_t v = 0; v < num_vertices; ++v) {
     const std::size_t first = patches.size();
     for (std::int64_t k = offsets[v]; k < offsets[v + 1]; ++k) {
-      for (int a = 0; a < 4; ++a) {
-        const std::int32_t w = body.tets[4 * static_cast<std::int64_t>(incident[k]) + a];
+      for (int a = 0; a < npe; ++a) {
+        const std::int32_t w = elements[npe * static_cast<std::int64_t>(incident[k]) + a];
         if (seen[w] != static_cast<std::int32_t>(v)) {
           seen[w] = static_cast<std::int32_t>(v);
           patches.push_back(w);
@@ -77,16 +80,17 @@ TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
   outer[size] = nonzero;
   std::fill_n(stiffness_.valuePtr(), nonzero, 0.0);
 
-  slot_.resize(48 * static_cast<std::size_t>(num_tets));
+  slot_.resize(3 * npe * npe * static_cast<std::size_t>(num_tets));
   for (std::int64_t t = 0; t < num_tets; ++t) {
-    const std::int32_t* v = body.tets.data() + 4 * t;
-    for (int a = 0; a < 4; ++a) {
-      for (int b = 0; b < 4; ++b) {
+    const std::int32_t* v = elements.data() + npe * t;
+    for (int a = 0; a < npe; ++a) {
+      for (int b = 0; b < npe; ++b) {
         const auto begin = neighbours.begin() + neighbour_offsets[v[b]];
         const auto end = neighbours.begin() + neighbour_offsets[v[b] + 1];
         const std::int64_t rank = std::lower_bound(begin, end, v[a]) - begin;
         for (int j = 0; j < 3; ++j) {
-          slot_[3 * (16 * t + 4 * a + b) + j] = outer[3 * static_cast<std::int64_t>(v[b]) + j] + 3 * rank;
+          slot_[3 * (npe * npe * t + npe * a + b) + j] =
+              outer[3 * static_cast<std::int64_t>(v[b]) + j] + 3 * rank;
         }
       }
     }
@@ -118,6 +122,8 @@ TangentAssembler::TangentAssembler(const ElasticBody& body) : body_(&body) {
     vertex_coefficient_.assign(num_vertices, 0.0);
     vertex_scratch_.resize(num_vertices);
   }
+  // The quadratic tet is assembled serially: no colouring.
+  if (body.quadratic()) return;
   // Groups of consecutive tets: few colours (barriers) and streaming access;
   // about 256 groups so that each colour still has work for several threads.
   colouring_ = mesh::colour_tets(body.tets, num_vertices, std::clamp<std::int64_t>(num_tets / 256, 8, 512));
@@ -337,6 +343,10 @@ void TangentAssembler::multiply(const double* x, double* out) const {
 }
 
 ElasticEvaluation TangentAssembler::assemble(const double* positions_m, double* forces_n) {
+  if (body_->quadratic()) {
+    if (body_->neo_hookean) return assemble_quadratic<false>(positions_m, forces_n);
+    return assemble_quadratic<true>(positions_m, forces_n);
+  }
   if (body_->neo_hookean) return assemble_impl<false>(positions_m, forces_n);
   return assemble_impl<true>(positions_m, forces_n);
 }

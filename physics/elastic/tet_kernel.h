@@ -108,6 +108,24 @@ struct TetStressLanes {
 };
 using TetStress = TetStressLanes<1>;
 
+// cof(F) = dJ/dF = J F^-T   (derivative table, paper section 3.2) of a
+// row-major F; returns J = det F (paper eq. 3), signed: an inverted element
+// is reported, never hidden. Stage 1 of the linear tet and of each
+// quadrature point of the quadratic one (quadratic_tet.cc).
+template <class T>
+inline __attribute__((always_inline)) T cofactor_of_gradient(const T* fl, T* cl) {
+  cl[0] = fl[4] * fl[8] - fl[5] * fl[7];
+  cl[1] = fl[5] * fl[6] - fl[3] * fl[8];
+  cl[2] = fl[3] * fl[7] - fl[4] * fl[6];
+  cl[3] = fl[2] * fl[7] - fl[1] * fl[8];
+  cl[4] = fl[0] * fl[8] - fl[2] * fl[6];
+  cl[5] = fl[1] * fl[6] - fl[0] * fl[7];
+  cl[6] = fl[1] * fl[5] - fl[2] * fl[4];
+  cl[7] = fl[2] * fl[3] - fl[0] * fl[5];
+  cl[8] = fl[0] * fl[4] - fl[1] * fl[3];
+  return fl[0] * cl[0] + fl[1] * cl[1] + fl[2] * cl[2];
+}
+
 // Stage 1: F = D B and its cofactor; returns J = det F (paper eq. 2-3, 11-12).
 // b, f and cof are read with stride S (S = kLanes of a lane block, 1 for one
 // tet), the positions with stride SY (default S): b[S k] = B_k,
@@ -129,23 +147,13 @@ inline __attribute__((always_inline)) T deformation_gradient(const T* b, const T
       fl[3 * i + l] = d[3 * i + 0] * b[S * l] + d[3 * i + 1] * b[S * (3 + l)] + d[3 * i + 2] * b[S * (6 + l)];
     }
   }
-  // cof(F) = dJ/dF = J F^-T   (derivative table, paper section 3.2)
   T cl[9];
-  cl[0] = fl[4] * fl[8] - fl[5] * fl[7];
-  cl[1] = fl[5] * fl[6] - fl[3] * fl[8];
-  cl[2] = fl[3] * fl[7] - fl[4] * fl[6];
-  cl[3] = fl[2] * fl[7] - fl[1] * fl[8];
-  cl[4] = fl[0] * fl[8] - fl[2] * fl[6];
-  cl[5] = fl[1] * fl[6] - fl[0] * fl[7];
-  cl[6] = fl[1] * fl[5] - fl[2] * fl[4];
-  cl[7] = fl[2] * fl[3] - fl[0] * fl[5];
-  cl[8] = fl[0] * fl[4] - fl[1] * fl[3];
+  const T det = cofactor_of_gradient(fl, cl);
   for (int k = 0; k < 9; ++k) {
     f[S * k] = fl[k];
     cof[S * k] = cl[k];
   }
-  // J = det F   (paper eq. 3), signed: an inverted element is reported, never hidden
-  return fl[0] * cl[0] + fl[1] * cl[1] + fl[2] * cl[2];
+  return det;
 }
 
 // Stage 3: invariants, energy density and nominal stress of lane `lane` of s
@@ -259,14 +267,20 @@ inline __attribute__((always_inline)) void stress_from_gradient(T mu1, T mu2, T 
 // the caller reports it and must not use the stress. NaN passes through (the
 // test is J <= 0, not !(J > 0)), so a NaN position gives a NaN energy rather
 // than a hidden or misnamed failure.
+// Stages 2-3 from s.f, s.cof and s.det_f (stage 1 done by the caller).
 template <bool kMooneyRivlin>
-inline bool tet_stress(const TetParams& p, const double* y0, const double* y1, const double* y2,
-                       const double* y3, TetStress& s) {
-  s.det_f[0] = deformation_gradient(p.b_matrix, y0, y1, y2, y3, s.f, s.cof);
+inline bool stress_at_gradient(const TetParams& p, TetStress& s) {
   if (s.det_f[0] <= 0.0) return false;
   stress_from_gradient<kMooneyRivlin>(p.mu1_pa, p.mu2_pa, p.kappa_pa, inverse_cube_root(s.det_f[0]), s, 0,
                                       p.pressure_pa);
   return true;
+}
+
+template <bool kMooneyRivlin>
+inline bool tet_stress(const TetParams& p, const double* y0, const double* y1, const double* y2,
+                       const double* y3, TetStress& s) {
+  s.det_f[0] = deformation_gradient(p.b_matrix, y0, y1, y2, y3, s.f, s.cof);
+  return stress_at_gradient<kMooneyRivlin>(p, s);
 }
 
 // f_i^a = -V0 dU/dF_kl dF_kl/du_i^a = -V0 P_il B_al for a = 1..3, and

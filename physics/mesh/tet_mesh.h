@@ -20,6 +20,12 @@ struct TetMesh {
   std::vector<std::int32_t> tets;        // 4 * num_tets()
   std::vector<Region> tet_region;        // num_tets(); all kCytoplasm without a nucleus
   std::vector<std::uint8_t> on_surface;  // num_vertices(); 1 for boundary vertices
+  // Quadratic (10-node) tetrahedra, empty for the linear mesh: 10 node indices
+  // per tet in VTK order (physics/mesh/quadratic_tets.h), the first four the
+  // corners of `tets`, then the mid-edge nodes (appended after the corner
+  // vertices in positions_m), so everything that reads `tets` sees the
+  // straight-sided corner mesh.
+  std::vector<std::int32_t> quadratic_tets;
 
   std::size_t num_vertices() const { return positions_m.size() / 3; }
   std::size_t num_tets() const { return tets.size() / 4; }

@@ -16,7 +16,8 @@ prints the relative force difference against validation/fe/curves/*.csv
 
 --numerics merges a QuasiStaticNumerics JSON object into every spec (e.g.
 '{"contactEnforcement": "CONTACT_ENFORCEMENT_PENALTY",
-  "probeContact": "PROBE_CONTACT_VERTICES"}' for the contact before issue 11).
+  "probeContact": "PROBE_CONTACT_VERTICES"}' for the contact before issue 11,
+'{"element": "ELEMENT_QUADRATIC_TET"}' for the 10-node tetrahedron).
 """
 import argparse
 import bisect

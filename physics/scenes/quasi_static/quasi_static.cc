@@ -10,6 +10,7 @@
 #include "physics/contact/rigid_contact.h"
 #include "physics/contact/surface_triangles.h"
 #include "physics/elastic/elastic_body.h"
+#include "physics/mesh/quadratic_tets.h"
 #include "physics/mesh/sphere_mesh.h"
 #include "physics/observables/shape.h"
 #include "physics/solver/equilibrium.h"
@@ -219,8 +220,10 @@ StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& 
   Setup setup;
   // The cell mesh with its bounding box centred at the origin, and its body.
   const mesh::PoleGrading grading{.pole_spacing_m = pole_spacing_m, .growth = numerics.pole_grading_growth};
+  const bool quadratic = numerics.element == elastic::Element::kQuadraticTet;
   StatusOr<cell::CellBody> built = cell::build_cell_body(
-      cell, numerics.volumetric, std::string(prefix) + "cell.", cell::Centring::kBoundingBox, grading);
+      cell, quadratic ? elastic::VolumetricTerm::kPerTet : numerics.volumetric, std::string(prefix) + "cell.",
+      cell::Centring::kBoundingBox, grading, numerics.element);
   if (!built.ok()) return built.status();
   const std::string p(prefix);
   const std::string mesh_source =
@@ -240,8 +243,10 @@ StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& 
     if (m.on_surface[v]) setup.surface_vertices.push_back(static_cast<std::int32_t>(v));
   }
   const mesh::MeshQuality quality = mesh::mesh_quality(m);
-  setup.penalty =
-      contact::default_penalty(cell.material.youngs_modulus_pa, cell.radius_m, quality.mean_edge_length_m);
+  // The penalty is sized per contact node: the quadratic mesh's nodes are
+  // half an edge apart.
+  const double node_spacing_m = quality.mean_edge_length_m * (quadratic ? 0.5 : 1.0);
+  setup.penalty = contact::default_penalty(cell.material.youngs_modulus_pa, cell.radius_m, node_spacing_m);
   if (numerics.contact_range_m) {
     // keep the default's force at zero gap (k r) when only the range is given
     const double force_at_contact = setup.penalty.stiffness_n_per_m * setup.penalty.range_m;
@@ -556,8 +561,12 @@ QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
   setup.lagged_tangent_contraction = kIndentationLaggedTangentContraction;
   const double range = start_distance(setup, params.numerics);
   const double lower_z = setup.z_bottom_m - range;
-  if (params.numerics.probe_contact == ProbeContact::kSurface)
+  if (params.numerics.probe_contact == ProbeContact::kSurface) {
     setup.surface_triangles = contact::boundary_triangles(setup.mesh.tets, setup.mesh.positions_m.data());
+    // Quadratic tets: each 6-node face as its four flat sub-triangles.
+    if (!setup.mesh.quadratic_tets.empty())
+      setup.surface_triangles = mesh::split_at_mid_edge_nodes(setup.mesh, setup.surface_triangles);
+  }
   // Probe on the z axis, lowered until its zero-force surface (radius Rp + r)
   // touches the first surface vertex: z_c = max_v z_v + sqrt((Rp + r)^2 - rho_v^2).
   const double reach = params.probe_radius_m + range;

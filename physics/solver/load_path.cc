@@ -81,8 +81,8 @@ void LoadPath::predict(double target, const contact::Obstacles& obstacles, std::
     push_out_of_obstacles(obstacles, extrapolated);
     candidates.push_back(std::move(extrapolated));
   }
-  if (has_older_ && has_previous_ && older_load_ != previous_load_ && previous_load_ != load_ &&
-      older_load_ != load_) {
+  if (quadratic_predictor_ && has_older_ && has_previous_ && older_load_ != previous_load_ &&
+      previous_load_ != load_ && older_load_ != load_) {
     // y(t) through the last three equilibria (Lagrange): the increments of
     // a Hertz-like contact shrink or grow with the load, which the linear
     // extrapolation misses. Measured (colloidal probe, 4907 vertices, 40

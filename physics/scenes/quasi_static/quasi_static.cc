@@ -202,6 +202,7 @@ struct Setup {
   // solver::EquilibriumOptions::lagged_tangent_contraction of the run (0: a
   // fresh tangent every Newton iteration)
   double lagged_tangent_contraction = 0.0;
+  bool quadratic_predictor = false;  // solver::LoadPath::set_quadratic_predictor (the probe curves)
 };
 
 // Indentation: Newton keeps the elastic tangent of the last assembly while
@@ -354,6 +355,7 @@ QuasiStaticResult run_load_points(Setup& setup, const cell::CellParams& cell,
   // 0.897, where CalculiX's axisymmetric reference of the same energy has
   // min J 0.19). A converged state, load point or sub-step, with an element
   // below kMinVolumeRatio ends the run naming it.
+  path.set_quadratic_predictor(setup.quadratic_predictor);
   path.set_state_check([&setup, diameter](double load_m, std::span<const double> positions_m) -> std::string {
     const elastic::VolumeRatioMinimum crushed = elastic::min_volume_ratio(setup.body, positions_m.data());
     if (!(crushed.volume_ratio < kMinVolumeRatio)) return {};
@@ -559,6 +561,7 @@ QuasiStaticResult run_indentation(const Checked<IndentationParams>& checked,
   if (!prepared.ok()) return QuasiStaticResult{.status = prepared.status(), .curve = {}};
   Setup& setup = *prepared;
   setup.lagged_tangent_contraction = kIndentationLaggedTangentContraction;
+  setup.quadratic_predictor = true;
   const double range = start_distance(setup, params.numerics);
   const double lower_z = setup.z_bottom_m - range;
   if (params.numerics.probe_contact == ProbeContact::kSurface) {

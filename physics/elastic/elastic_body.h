@@ -210,6 +210,14 @@ class TangentAssembler {
   std::int64_t volumetric_row_length(std::size_t a) const {
     return has_volumetric_operator() ? patch_offsets_[a + 1] - patch_offsets_[a] : 0;
   }
+  // G in the layout of the patches (for a caller that fuses the gather into
+  // its own pass over the same neighbour lists): row a has the entries
+  // [offsets[a], offsets[a + 1]) of patches, g_a[patches[k]] at rows + 3 k,
+  // and C_a at coefficients[a]. Empty without the operator.
+  std::span<const std::int64_t> volumetric_patch_offsets() const { return patch_offsets_; }
+  std::span<const std::int32_t> volumetric_patches() const { return patches_; }
+  const double* volumetric_rows() const { return g_rows_.data(); }
+  const double* volumetric_coefficients() const { return vertex_coefficient_.data(); }
   // blocks[9 v + 3 i + j] += (G^T C G)_(3v+i),(3v+j): its diagonal 3x3 blocks.
   void add_volumetric_diagonal_blocks(double* blocks) const;
   // out = K x with both parts (tests and small problems).

@@ -141,6 +141,14 @@ EquilibriumSolver::EquilibriumSolver(const elastic::ElasticBody& body,
     block_neighbours_.clear();
     block_neighbour_offsets_.clear();
   }
+  if (blocked && tangent_.has_volumetric_operator()) {
+    const auto offsets = tangent_.volumetric_patch_offsets();
+    const auto patches = tangent_.volumetric_patches();
+    fused_volumetric_gather_ =
+        std::equal(offsets.begin(), offsets.end(), block_neighbour_offsets_.begin(),
+                   block_neighbour_offsets_.end()) &&
+        std::equal(patches.begin(), patches.end(), block_neighbours_.begin(), block_neighbours_.end());
+  }
   const Eigen::Index n = static_cast<Eigen::Index>(3 * nv);
   diagonal_.setZero(n);
   r_.setZero(n);

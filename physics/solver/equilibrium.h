@@ -168,8 +168,11 @@ class EquilibriumSolver {
   // last assembly (only the contact blocks are evaluated at y).
   void assemble_tangent(const contact::Obstacles& obstacles, const double* y, bool reuse_elastic);
   // out = (K + shift diag K) x on the rows of vertices [begin, end), without
-  // the applied volumetric part (reads x on their neighbours).
-  void multiply_rows(const double* x, double* out, double shift, std::int64_t begin, std::int64_t end) const;
+  // the applied volumetric part (reads x on their neighbours); with
+  // volumetric_z (fused_volumetric_gather_ only) also the volumetric gather
+  // z_a = C_a g_a . x of those vertices, in the same pass over x.
+  void multiply_rows(const double* x, double* out, double shift, std::int64_t begin, std::int64_t end,
+                     double* volumetric_z = nullptr) const;
   // First vertex of thread rank's range of the linear solve (equal work).
   std::int64_t split_vertex(int rank, int size) const;
   void build_preconditioner(double shift);
@@ -200,8 +203,19 @@ class EquilibriumSolver {
   std::vector<double> volumetric_blocks_;
   std::vector<std::int32_t> block_neighbours_;         // neighbour vertex of each 3x3 block of a block column
   std::vector<std::int64_t> block_neighbour_offsets_;  // per vertex; empty if K lacks the block layout
-  Eigen::VectorXd diagonal_;                           // diag K (Levenberg shift)
-  std::vector<Eigen::VectorXd> rigid_modes_;           // orthonormal
+  // The rows of G (applied volumetric part) run over the same neighbour lists
+  // as K's block columns: multiply_rows can do the gather of G^T C G.
+  bool fused_volumetric_gather_ = false;
+  Eigen::VectorXd diagonal_;                  // diag K (Levenberg shift)
+  std::vector<Eigen::VectorXd> rigid_modes_;  // orthonormal
+  // The same modes in closed form for the CG loop, which would otherwise
+  // stream 6 stored mode vectors four times per iteration: every held mode is
+  // a rigid field m(X) = t + A (X - c), so m . v needs only the 12 moments
+  // mu(v) = (sum_w v_w, sum_w v_w (X_w - c)^T) and the held part
+  // sum_j m_j (m_j . v) is the rigid field of coefficients H mu(v), with
+  // H = sum_j phi_j phi_j^T (phi_j = (t_j, A_j row-major)).
+  std::vector<double> centred_reference_;  // X_w - c, 3 per vertex
+  double held_projector_[144] = {};        // H, 12 x 12 row-major
   std::unique_ptr<Preconditioning> preconditioning_;
   double damping_ = 0.0;         // Levenberg-Marquardt lambda of the current solve
   double damping_growth_ = 2.0;  // its growth factor after a failed step
@@ -210,7 +224,6 @@ class EquilibriumSolver {
   std::vector<double> volumetric_scratch_;  // C G p, one per vertex
   std::vector<double> reduction_slots_;     // per thread partial sums, two rounds
   std::vector<std::int64_t> work_prefix_;   // per vertex, prefix sum of its product work
-  std::vector<double> zero_mode_;           // stands for the absent held modes (at most 6)
 };
 
 }  // namespace cellflow::solver

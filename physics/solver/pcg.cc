@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "physics/solver/equilibrium.h"
@@ -20,8 +21,11 @@ namespace {
 // Below this many unknowns (~2000 vertices) one linear solve's team costs
 // more in barriers than the second thread gives.
 constexpr std::int64_t kMinParallelDofs = 6000;
-// Reduced values per thread and round: r.r, r.z and the held modes'
-// components of z (at most 6), or p.q and those of q.
+// Moments of a vector that give its components along the held rigid modes
+// (EquilibriumSolver::centred_reference_).
+constexpr int kMoments = 12;
+// Reduced values per thread and round: r.r, r.z and the moments of z, or
+// the moments of q and p.q.
 constexpr int kReductionSlots = 16;
 
 int team_size(int threads) {
@@ -31,42 +35,58 @@ int team_size(int threads) {
 }  // namespace
 
 void EquilibriumSolver::multiply_rows(const double* x, double* out, double shift, std::int64_t begin,
-                                      std::int64_t end) const {
+                                      std::int64_t end, double* volumetric_z) const {
   // K is symmetric and stored with both triangles, so column i is row i:
   // out_i = K(:, i) . x. With the 3x3 block layout (columns 3v, 3v+1, 3v+2
   // hold the same neighbour rows, three consecutive rows per neighbour) one
-  // neighbour index and one load of x_w serve nine products.
+  // neighbour index and one load of x_w serve nine products, and with
+  // volumetric_z the three of the gather z_v = C_v g_v . x (Eq. of the
+  // nodal-averaged volumetric tangent G^T C G) as well.
   const Eigen::SparseMatrix<double>& k = tangent_.stiffness();
   const auto* outer = k.outerIndexPtr();
   const auto* inner = k.innerIndexPtr();
   const double* values = k.valuePtr();
   const double* diag = diagonal_.data();
   const bool blocked = !block_neighbour_offsets_.empty();
-  for (std::int64_t v = begin; v < end; ++v) {
-    if (!blocked) {
-      for (std::int64_t i = 3 * v; i < 3 * v + 3; ++i) {
-        double sum = shift * diag[i] * x[i];
-        for (auto s = outer[i]; s < outer[i + 1]; ++s) sum += values[s] * x[inner[s]];
-        out[i] = sum;
+  if (!blocked) {
+    for (std::int64_t i = 3 * begin; i < 3 * end; ++i) {
+      double sum = shift * diag[i] * x[i];
+      for (auto s = outer[i]; s < outer[i + 1]; ++s) sum += values[s] * x[inner[s]];
+      out[i] = sum;
+    }
+    return;
+  }
+  auto rows = [&](auto with_gather) {
+    constexpr bool kGather = decltype(with_gather)::value;
+    const double* g_rows = kGather ? tangent_.volumetric_rows() : nullptr;
+    const double* coefficients = kGather ? tangent_.volumetric_coefficients() : nullptr;
+    for (std::int64_t v = begin; v < end; ++v) {
+      const double* c0 = values + outer[3 * v];
+      const double* c1 = values + outer[3 * v + 1];
+      const double* c2 = values + outer[3 * v + 2];
+      double s0 = 0.0, s1 = 0.0, s2 = 0.0, sg = 0.0;
+      const std::int64_t first = block_neighbour_offsets_[v], count = block_neighbour_offsets_[v + 1] - first;
+      const std::int32_t* neighbours = block_neighbours_.data() + first;
+      const double* g = kGather ? g_rows + 3 * first : nullptr;
+      for (std::int64_t b = 0; b < count; ++b) {
+        const double* xw = x + 3 * static_cast<std::int64_t>(neighbours[b]);
+        const double x0 = xw[0], x1 = xw[1], x2 = xw[2];
+        s0 += c0[3 * b] * x0 + c0[3 * b + 1] * x1 + c0[3 * b + 2] * x2;
+        s1 += c1[3 * b] * x0 + c1[3 * b + 1] * x1 + c1[3 * b + 2] * x2;
+        s2 += c2[3 * b] * x0 + c2[3 * b + 1] * x1 + c2[3 * b + 2] * x2;
+        if constexpr (kGather) sg += g[3 * b] * x0 + g[3 * b + 1] * x1 + g[3 * b + 2] * x2;
       }
-      continue;
+      out[3 * v] = s0 + shift * diag[3 * v] * x[3 * v];
+      out[3 * v + 1] = s1 + shift * diag[3 * v + 1] * x[3 * v + 1];
+      out[3 * v + 2] = s2 + shift * diag[3 * v + 2] * x[3 * v + 2];
+      if constexpr (kGather) volumetric_z[v] = coefficients[v] * sg;
     }
-    const double* c0 = values + outer[3 * v];
-    const double* c1 = values + outer[3 * v + 1];
-    const double* c2 = values + outer[3 * v + 2];
-    double s0 = 0.0, s1 = 0.0, s2 = 0.0;
-    const std::int64_t first = block_neighbour_offsets_[v], count = block_neighbour_offsets_[v + 1] - first;
-    const std::int32_t* neighbours = block_neighbours_.data() + first;
-    for (std::int64_t b = 0; b < count; ++b) {
-      const double* xw = x + 3 * static_cast<std::int64_t>(neighbours[b]);
-      const double x0 = xw[0], x1 = xw[1], x2 = xw[2];
-      s0 += c0[3 * b] * x0 + c0[3 * b + 1] * x1 + c0[3 * b + 2] * x2;
-      s1 += c1[3 * b] * x0 + c1[3 * b + 1] * x1 + c1[3 * b + 2] * x2;
-      s2 += c2[3 * b] * x0 + c2[3 * b + 1] * x1 + c2[3 * b + 2] * x2;
-    }
-    out[3 * v] = s0 + shift * diag[3 * v] * x[3 * v];
-    out[3 * v + 1] = s1 + shift * diag[3 * v + 1] * x[3 * v + 1];
-    out[3 * v + 2] = s2 + shift * diag[3 * v + 2] * x[3 * v + 2];
+  };
+  if (volumetric_z != nullptr && fused_volumetric_gather_) {
+    rows(std::true_type{});
+  } else {
+    rows(std::false_type{});
+    if (volumetric_z != nullptr) tangent_.volumetric_gather(x, begin, end, volumetric_z);
   }
 }
 
@@ -120,10 +140,12 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
       work_prefix_[v] = sum;
     }
   }
-  const int num_modes = static_cast<int>(rigid_modes_.size());
-  const double* modes[6] = {};
-  zero_mode_.assign(static_cast<std::size_t>(n), 0.0);
-  for (int i = 0; i < 6; ++i) modes[i] = i < num_modes ? rigid_modes_[i].data() : zero_mode_.data();
+  // The held modes in closed form (see centred_reference_): 12 moments per
+  // reduction instead of one component per mode, and the reference positions
+  // instead of the mode vectors in every pass.
+  const bool held = !rigid_modes_.empty();
+  const int num_moments = held ? kMoments : 0;
+  const double* centred = centred_reference_.data();
   const Preconditioning& pc = *preconditioning_;
   int iterations = 0;
   bool curvature_failed = false;
@@ -152,43 +174,60 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
         values[c] = total;
       }
     };
-    // c[i] = m_i . v on the range, all modes in one pass; returns u . v too.
-    // Six accumulators whatever the number of modes (absent modes read a
-    // zero vector), so that the loop vectorises.
-    auto mode_components = [&](const double* u, const double* v, double* c) {
-      double uv = 0.0, c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0;
-      const double *m0 = modes[0], *m1 = modes[1], *m2 = modes[2], *m3 = modes[3], *m4 = modes[4],
-                   *m5 = modes[5];
-#pragma omp simd reduction(+ : uv, c0, c1, c2, c3, c4, c5)
-      for (std::int64_t k = b; k < e; ++k) {
-        const double vk = v[k];
-        uv += u[k] * vk;
-        c0 += m0[k] * vk;
-        c1 += m1[k] * vk;
-        c2 += m2[k] * vk;
-        c3 += m3[k] * vk;
-        c4 += m4[k] * vk;
-        c5 += m5[k] * vk;
+    // mu[0 .. 12) = the moments of v on the range (sum_w v_w, then
+    // sum_w v_w (X_w - c)^T row-major), if modes are held; returns u . v.
+    auto moments = [&](const double* u, const double* v, double* mu) {
+      double uv = 0.0;
+      if (!held) {
+#pragma omp simd reduction(+ : uv)
+        for (std::int64_t k = b; k < e; ++k) uv += u[k] * v[k];
+        return uv;
       }
-      const double all[6] = {c0, c1, c2, c3, c4, c5};
-      std::copy(all, all + num_modes, c);
+      double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+      double m00 = 0.0, m01 = 0.0, m02 = 0.0, m10 = 0.0, m11 = 0.0, m12 = 0.0, m20 = 0.0, m21 = 0.0,
+             m22 = 0.0;
+      for (std::int64_t w = vb; w < ve; ++w) {
+        const double v0 = v[3 * w], v1 = v[3 * w + 1], v2 = v[3 * w + 2];
+        const double d0 = centred[3 * w], d1 = centred[3 * w + 1], d2 = centred[3 * w + 2];
+        uv += u[3 * w] * v0 + u[3 * w + 1] * v1 + u[3 * w + 2] * v2;
+        s0 += v0;
+        s1 += v1;
+        s2 += v2;
+        m00 += v0 * d0;
+        m01 += v0 * d1;
+        m02 += v0 * d2;
+        m10 += v1 * d0;
+        m11 += v1 * d1;
+        m12 += v1 * d2;
+        m20 += v2 * d0;
+        m21 += v2 * d1;
+        m22 += v2 * d2;
+      }
+      const double all[kMoments] = {s0, s1, s2, m00, m01, m02, m10, m11, m12, m20, m21, m22};
+      std::copy(all, all + kMoments, mu);
       return uv;
     };
-    // (Q c)_k over six modes, c holding num_modes components
-    struct Padded {
-      double c[6];
+    // The rigid field (t, A) of the held part sum_j m_j (m_j . v) = H mu(v).
+    struct HeldField {
+      double c[kMoments];
     };
-    auto pad = [&](const double* c) {
-      Padded out = {};
-      std::copy(c, c + num_modes, out.c);
-      return out;
+    auto held_field = [&](const double* mu) {
+      HeldField h = {};
+      if (!held) return h;
+      for (int i = 0; i < kMoments; ++i) {
+        double sum = 0.0;
+        for (int j = 0; j < kMoments; ++j) sum += held_projector_[kMoments * i + j] * mu[j];
+        h.c[i] = sum;
+      }
+      return h;
     };
-    auto held_part = [&](const Padded& c, std::int64_t k) {
-      return c.c[0] * modes[0][k] + c.c[1] * modes[1][k] + c.c[2] * modes[2][k] + c.c[3] * modes[3][k] +
-             c.c[4] * modes[4][k] + c.c[5] * modes[5][k];
+    // component a of the held field at vertex w: t_a + A_a. (X_w - c)
+    auto held_part = [&](const HeldField& h, std::int64_t w, int a) {
+      const double* d = centred + 3 * w;
+      return h.c[a] + h.c[3 + 3 * a] * d[0] + h.c[4 + 3 * a] * d[1] + h.c[5 + 3 * a] * d[2];
     };
     // z = M^-1 r on the range (block Jacobi; incomplete Cholesky runs on a
-    // team of one, over everything); then red = {r.r, r.z, Q^T z}.
+    // team of one, over everything); then red = {r.r, r.z, mu(z)}.
     auto precondition = [&](double* red) {
       if (incomplete_cholesky) {
         const Eigen::VectorXd solved = pc.incomplete_cholesky.solve(r_);
@@ -205,20 +244,22 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
 #pragma omp simd reduction(+ : rr)
       for (std::int64_t k = b; k < e; ++k) rr += r[k] * r[k];
       red[0] = rr;
-      red[1] = mode_components(r, z, red + 2);
-      reduce(red, 2 + num_modes);
+      red[1] = moments(r, z, red + 2);
+      reduce(red, 2 + num_moments);
     };
-    // v -= Q c on the range
-    auto remove_modes = [&](double* v, const double* components) {
-      const Padded c = pad(components);
-#pragma omp simd
-      for (std::int64_t k = b; k < e; ++k) v[k] -= held_part(c, k);
+    // v -= Q Q^T v on the range, from the moments of v
+    auto remove_modes = [&](double* v, const double* mu) {
+      if (!held) return;
+      const HeldField h = held_field(mu);
+      for (std::int64_t w = vb; w < ve; ++w) {
+        for (int a = 0; a < 3; ++a) v[3 * w + a] -= held_part(h, w, a);
+      }
     };
     double red[kReductionSlots] = {};
 
     // r = P rhs, target from its norm
-    mode_components(r, r, red);
-    reduce(red, num_modes);
+    moments(r, r, red);
+    reduce(red, num_moments);
     remove_modes(r, red);
     // z = P M^-1 r, p = z. Since r, p and every later r are in the null space
     // of Q^T (to round-off), r.(P z) = r.z and p.(P q) = p.q.
@@ -231,16 +272,15 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
     for (int it = 0; it < options_.max_cg_iterations; ++it) {
 #pragma omp barrier
       // q = (K + shift diag K) p
-      multiply_rows(p, q, shift, vb, ve);
+      multiply_rows(p, q, shift, vb, ve, volumetric ? zv : nullptr);
       if (volumetric) {
-        tangent_.volumetric_gather(p, vb, ve, zv);
 #pragma omp barrier
         tangent_.add_volumetric_scatter(zv, vb, ve, q);
       }
-      // Q^T q and p.q
-      red[num_modes] = mode_components(p, q, red);
-      reduce(red, num_modes + 1);
-      const double curvature = red[num_modes];
+      // mu(q) and p.q
+      red[kMoments] = moments(p, q, red);
+      reduce(red, kMoments + 1);
+      const double curvature = red[kMoments];
       if (!(curvature > 0.0)) {
         // Steihaug: stop at the last iterate; with none yet, the preconditioned
         // residual is a descent direction for the line search to scale.
@@ -252,11 +292,13 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
         return;
       }
       const double alpha = rz / curvature;
-      const Padded qc = pad(red);
-#pragma omp simd
-      for (std::int64_t k = b; k < e; ++k) {
-        x[k] += alpha * p[k];
-        r[k] -= alpha * (q[k] - held_part(qc, k));  // r -= alpha P q
+      const HeldField qh = held_field(red);
+      for (std::int64_t w = vb; w < ve; ++w) {
+        for (int a = 0; a < 3; ++a) {
+          const std::int64_t k = 3 * w + a;
+          x[k] += alpha * p[k];
+          r[k] -= alpha * (q[k] - held_part(qh, w, a));  // r -= alpha P q
+        }
       }
       precondition(red);
       if (std::sqrt(red[0]) <= target) {
@@ -265,9 +307,13 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
       }
       const double rz_next = red[1];
       const double beta = rz_next / rz;
-      const Padded zc = pad(red + 2);
-#pragma omp simd
-      for (std::int64_t k = b; k < e; ++k) p[k] = (z[k] - held_part(zc, k)) + beta * p[k];  // P z + beta p
+      const HeldField zh = held_field(red + 2);
+      for (std::int64_t w = vb; w < ve; ++w) {
+        for (int a = 0; a < 3; ++a) {
+          const std::int64_t k = 3 * w + a;
+          p[k] = (z[k] - held_part(zh, w, a)) + beta * p[k];  // P z + beta p
+        }
+      }
       rz = rz_next;
     }
     if (rank == 0) iterations = options_.max_cg_iterations;

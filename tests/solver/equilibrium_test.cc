@@ -261,18 +261,36 @@ TEST(LoadPath, StepThatCannotBeSplitFurtherFails) {
   EXPECT_EQ(path.load_m(), 0.0);
 }
 
+// A path from the equilibrium at 10 % compression whose solver has too few
+// Newton iterations (5) for a jump from there to 40 %, so long steps halve.
+struct StrictPathFromTenPercent {
+  explicit StrictPathFromTenPercent(const Problem& p)
+      : start(ten_percent_state(p)),
+        strict(p.body, p.surface, p.mesh.positions_m, strict_options()),
+        path(
+            strict, [&p](double t) { return p.plates(t); }, start, 0.2 * kRadius) {}
+  static std::vector<double> ten_percent_state(const Problem& p) {
+    EquilibriumSolver generous(p.body, p.surface, p.mesh.positions_m, options(1e-6));
+    return compressed_state(p, generous, 0.1);
+  }
+  static EquilibriumOptions strict_options() {
+    EquilibriumOptions o = options(1e-6);
+    o.max_newton_iterations = 5;
+    return o;
+  }
+  const std::vector<double> start;
+  EquilibriumSolver strict;
+  LoadPath path;
+};
+
 // A converged sub-step that the state check refuses ends the load step at
 // once: no further halving (a shorter step cannot make that state trusted),
 // the state stays at the last accepted load, and the message is the check's.
 TEST(LoadPath, RejectedSubStepEndsTheStepWithoutMoreSplits) {
   const Problem p = make_problem(300, 1.0);
-  EquilibriumSolver generous(p.body, p.surface, p.mesh.positions_m, options(1e-6));
-  const std::vector<double> start = compressed_state(p, generous, 0.1);
-  EquilibriumOptions o = options(1e-6);
-  o.max_newton_iterations = 5;  // too few for a jump from 10 % to 40 % compression
-  EquilibriumSolver strict(p.body, p.surface, p.mesh.positions_m, o);
-  LoadPath path(
-      strict, [&](double t) { return p.plates(t); }, start, 0.2 * kRadius);
+  StrictPathFromTenPercent strict_path(p);
+  const std::vector<double>& start = strict_path.start;
+  LoadPath& path = strict_path.path;
   std::vector<double> checked_loads;
   path.set_state_check([&](double load_m, std::span<const double> positions_m) -> std::string {
     EXPECT_EQ(positions_m.size(), start.size());
@@ -298,13 +316,8 @@ TEST(LoadPath, RejectedSubStepEndsTheStepWithoutMoreSplits) {
 
 TEST(LoadPath, HalvedStepsReachTheTarget) {
   const Problem p = make_problem(300, 1.0);
-  EquilibriumSolver generous(p.body, p.surface, p.mesh.positions_m, options(1e-6));
-  const std::vector<double> start = compressed_state(p, generous, 0.1);
-  EquilibriumOptions o = options(1e-6);
-  o.max_newton_iterations = 5;  // too few for a jump from 10 % to 40 % compression
-  EquilibriumSolver strict(p.body, p.surface, p.mesh.positions_m, o);
-  LoadPath path(
-      strict, [&](double t) { return p.plates(t); }, start, 0.2 * kRadius);
+  StrictPathFromTenPercent strict_path(p);
+  LoadPath& path = strict_path.path;
   const LoadStepReport step = path.advance_to(0.8 * kRadius, 8);
   ASSERT_TRUE(step.converged) << step.message;
   EXPECT_GE(step.step_splits, 1);

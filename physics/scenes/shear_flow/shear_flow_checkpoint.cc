@@ -96,13 +96,13 @@ std::string mismatch(const char* what, std::uint64_t file, std::uint64_t run) {
   return checkpoint_mismatch(what, file, run);
 }
 
-std::uint64_t precision_word(const lb::Fluid& fluid, const Run& run) {
+}  // namespace
+
+std::uint64_t precision_word(const lb::Fluid& fluid, const coupling::ImmersedCells& cells) {
   return checkpoint_precision_word(
       fluid.params().precision == lb::Precision::kFloat,
-      run.cells.size() > 0 && run.cells[0].elastic_precision == elastic::ForcePrecision::kFloat);
+      cells.size() > 0 && cells[0].elastic_precision == elastic::ForcePrecision::kFloat);
 }
-
-}  // namespace
 
 std::uint64_t mesh_hash(const mesh::TetMesh& mesh) {
   WordHash hash;
@@ -128,7 +128,7 @@ StatusOr<std::uint64_t> write_checkpoint(const Run& run, const ShearFlowResult& 
   header[kWordNx] = static_cast<std::uint64_t>(fluid.nx());
   header[kWordNy] = static_cast<std::uint64_t>(fluid.ny());
   header[kWordNz] = static_cast<std::uint64_t>(fluid.nz());
-  header[kWordPrecision] = precision_word(fluid, run);
+  header[kWordPrecision] = precision_word(fluid, run.cells);
   header[kWordStreaming] = fluid.params().streaming == lb::Streaming::kAA ? 0 : 1;
   header[kWordVertices] = nv;
   header[kWordTets] = run.mesh.num_tets();
@@ -197,7 +197,7 @@ StatusOr<std::int64_t> read_checkpoint(const std::string& path, std::uint64_t sp
       {kWordNy, "lattice ny", static_cast<std::uint64_t>(fluid.ny())},
       {kWordNz, "lattice nz", static_cast<std::uint64_t>(fluid.nz())},
       {kWordPrecision, "precision (bit 0: float populations, bit 1: float elastic forces)",
-       precision_word(fluid, run)},
+       precision_word(fluid, run.cells)},
       {kWordStreaming, "streaming (0 AA)", fluid.params().streaming == lb::Streaming::kAA ? 0u : 1u},
       {kWordVertices, "vertex count", nv},
       {kWordTets, "tet count", run.mesh.num_tets()},

@@ -49,6 +49,10 @@ inline constexpr std::uint32_t kCheckpointFormatVersion = 1;
 // of a different mesh (another mesher version on another machine).
 std::uint64_t mesh_hash(const mesh::TetMesh& mesh);
 
+// checkpoint_precision_word of a run's fluid and cells (every cell has the
+// scene's elastic precision), for both formats.
+std::uint64_t precision_word(const lb::Fluid& fluid, const coupling::ImmersedCells& cells);
+
 // Writes the state after `step` to path + ".tmp", then renames it to path.
 // Returns the bytes written.
 StatusOr<std::uint64_t> write_checkpoint(const Run& run, const ShearFlowResult& result,

@@ -129,13 +129,6 @@ Status refused(const std::string& why) {
 
 }  // namespace
 
-// checkpoint_precision_word of the run: every cell has the scene's elastic precision.
-std::uint64_t precision_word(const lb::Fluid& fluid, const coupling::ImmersedCells& cells) {
-  return shear_flow_detail::checkpoint_precision_word(
-      fluid.params().precision == lb::Precision::kFloat,
-      cells.size() > 0 && cells[0].elastic_precision == elastic::ForcePrecision::kFloat);
-}
-
 std::uint64_t cells_hash(const coupling::ImmersedCells& cells, std::span<const int> cell_kind) {
   WordHash hash;
   for (std::size_t c = 0; c < cells.size(); ++c) {
@@ -174,7 +167,7 @@ StatusOr<std::uint64_t> write_checkpoint(const CheckpointLayout& layout, const c
   header[kWordNx] = static_cast<std::uint64_t>(fluid.nx());
   header[kWordNy] = static_cast<std::uint64_t>(fluid.ny());
   header[kWordNz] = static_cast<std::uint64_t>(fluid.nz());
-  header[kWordPrecision] = precision_word(fluid, cells);
+  header[kWordPrecision] = shear_flow_detail::precision_word(fluid, cells);
   header[kWordStreaming] = fluid.params().streaming == lb::Streaming::kAA ? 0 : 1;
   header[kWordCells] = cells.size();
   header[kWordVertices] = nv;
@@ -243,7 +236,7 @@ StatusOr<RestoredState> read_checkpoint(const std::string& path, const Checkpoin
       {kWordNy, "lattice ny", static_cast<std::uint64_t>(fluid.ny())},
       {kWordNz, "lattice nz", static_cast<std::uint64_t>(fluid.nz())},
       {kWordPrecision, "precision (bit 0: float populations, bit 1: float elastic forces)",
-       precision_word(fluid, cells)},
+       shear_flow_detail::precision_word(fluid, cells)},
       {kWordStreaming, "streaming (0 AA)", fluid.params().streaming == lb::Streaming::kAA ? 0u : 1u},
       {kWordCells, "cell count", cells.size()},
       {kWordVertices, "vertex count", nv},

@@ -113,10 +113,21 @@ TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
   const std::string id = submit(spec);
   ASSERT_EQ(id, "job-1");
   Watcher watcher(*client_, id);
-  Process* first = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
-  // Kill at 60 % of the samples, once a checkpoint is on the server.
+  // A checkpoint every sixth of the in-process run's wall time, at most a
+  // second (as the suspension test below: on a fast machine the whole run
+  // takes about 3 s).
+  const std::string interval = std::to_string(std::min(1.0, reference_s / 6.0));
+  Process* first = start_worker({"--threads", "1", "--checkpoint-interval-s", interval});
+  // Kill at 60 % of the samples, once a checkpoint is on the server and the
+  // worker has logged its upload (the server commits it before the worker
+  // logs it: a kill that falls in between leaves no logged upload to resume
+  // from, which is what the assertions below compare with).
   ASSERT_TRUE(eventually(
-      [&] { return watcher.max_sample_index() >= (6 * total_samples) / 10 && fs::exists(checkpoint); }, 120s))
+      [&] {
+        return watcher.max_sample_index() >= (6 * total_samples) / 10 && fs::exists(checkpoint) &&
+               !uploaded_checkpoint_steps(first->log()).empty();
+      },
+      120s))
       << "samples " << watcher.max_sample_index() << ", checkpoint " << fs::exists(checkpoint) << "\n"
       << first->log();
   first->signal(SIGKILL);
@@ -127,7 +138,7 @@ TEST_F(ServiceTest, KilledFlowWorkerIsResumedFromItsCheckpointBitIdentically) {
   EXPECT_LT(delivered_before_kill, total_samples - 1) << "the run ended before the kill";
   EXPECT_NE(first->log().find("checkpoint after step"), std::string::npos) << first->log();
 
-  Process* second = start_worker({"--threads", "1", "--checkpoint-interval-s", "1"});
+  Process* second = start_worker({"--threads", "1", "--checkpoint-interval-s", interval});
   watcher.join();
   const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - submitted).count();
   ASSERT_TRUE(watcher.status().ok()) << watcher.status().error_message();

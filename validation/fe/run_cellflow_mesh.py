@@ -110,7 +110,21 @@ def midside(T):
     return edges, np.array(elems, dtype=np.int64)
 
 
-def build(pos, T, eltype, mode, frame, eps_max, ninc, kfac=rr.KFAC, w=0.25, controls=None, c0_r=0.0, contact="s2s"):
+def sphere_midpoints(X, ends, boundary):
+    """cellflow's ELEMENT_QUADRATIC_TET mid-edge nodes (physics/mesh/quadratic_tets.cc): the
+    midpoint of every boundary edge moved radially about the origin to the mean distance of the
+    edge's ends (the quadratic surface on the sphere through its vertices); inner edges straight."""
+    a, b = X[ends[:, 0]], X[ends[:, 1]]
+    m = 0.5 * (a + b)
+    r = 0.5 * (np.linalg.norm(a, axis=1) + np.linalg.norm(b, axis=1))
+    lm = np.linalg.norm(m, axis=1)
+    sel = boundary & (lm > 0)
+    m[sel] *= (r[sel] / lm[sel])[:, None]
+    return m
+
+
+def build(pos, T, eltype, mode, frame, eps_max, ninc, kfac=rr.KFAC, w=0.25, controls=None, c0_r=0.0, contact="s2s",
+          midside_mode="straight", frd_every=0):
     X = pos[0]
     T = orient(X, T)
     nv = len(X)
@@ -123,13 +137,24 @@ def build(pos, T, eltype, mode, frame, eps_max, ninc, kfac=rr.KFAC, w=0.25, cont
     coords = [tuple(p) for p in X]
     if eltype == "C3D10":
         edges, mids = midside(T)
-        mid_xyz = np.zeros((len(edges), 3))
-        for (a, b), i in edges.items():
-            mid_xyz[i] = 0.5 * (X[a] + X[b])
-        coords += [tuple(p) for p in mid_xyz]
         ends = np.zeros((len(edges), 2), dtype=np.int64)
         for (a, b), i in edges.items():
             ends[i] = (a, b)
+        if midside_mode == "sphere":
+            bedges = set()
+            for e, f in boundary_faces(T):
+                fc = [int(T[e][k]) for k in TET_FACES[f - 1]]
+                for u, v in ((0, 1), (1, 2), (2, 0)):
+                    bedges.add((min(fc[u], fc[v]), max(fc[u], fc[v])))
+            on_b = np.array([(int(a), int(b)) in bedges for a, b in ends])
+            mid_xyz = sphere_midpoints(X, ends, on_b)
+        else:
+            mid_xyz = 0.5 * (X[ends[:, 0]] + X[ends[:, 1]])
+        coords += [tuple(p) for p in mid_xyz]
+        # the plates start at the extreme heights of all nodes (curved mid-side nodes may lie outside
+        # the corners' range; for the generated sphere with a vertex at each pole they do not)
+        ztop, zbot = max(ztop, mid_xyz[:, 2].max()), min(zbot, mid_xyz[:, 2].min())
+        h0 = ztop - zbot
     ncell = len(coords)
     W, th, npl = 2.6 * R_UM, 0.2 * R_UM, 10
     plates = {}
@@ -222,9 +247,10 @@ def build(pos, T, eltype, mode, frame, eps_max, ninc, kfac=rr.KFAC, w=0.25, cont
     out = ["*NODE PRINT, NSET=PTOP, TOTALS=ONLY, FREQUENCY=1", "RF",
            "*NODE PRINT, NSET=PBOT, TOTALS=ONLY, FREQUENCY=1", "RF",
            "*EL PRINT, ELSET=CELL, TOTALS=ONLY, FREQUENCY=1", "ELSE",
-           "*NODE FILE, NSET=CELLN, FREQUENCY=%d" % (1 if eltype == "C3D4" else 4), "U"]
+           "*NODE FILE, NSET=CELLN, FREQUENCY=%d" % (frd_every or (1 if eltype == "C3D4" else 4)), "U"]
+    # (ccx 2.20 takes this last FREQUENCY for the .dat too: C3D10's force rows every 4th increment)
     info = dict(vertices=nv, tets=len(T), nodes=len(coords), cell_nodes=ncell, h0_um=h0, K=K, eltype=eltype,
-                mode=mode, centre=centre, ypin=ypin, poles=poles, spring_n_per_m=ksp * 1e-6, ninc=ninc)
+                midside=midside_mode if eltype == "C3D10" else None, mode=mode, centre=centre, ypin=ypin, poles=poles, spring_n_per_m=ksp * 1e-6, ninc=ninc)
     if mode == "load":
         L += ["*BOUNDARY", "CENTRE, 1, 3, 0.", "YPIN, 2, 2, 0.", "PTOP, 1, 2, 0.", "PBOT, 1, 2, 0.",
               "*STEP, NLGEOM, INC=100000", "*STATIC", "%g, 1.0, %g, %g" % (1.0 / ninc, 1e-7, 1.0 / ninc),
@@ -333,6 +359,19 @@ def parse(datfile, info):
     return out
 
 
+def log_stats(logtxt):
+    """ccx's incrementation from its log: attempts (every try of an increment), converged increments,
+    cut-backs (retries of an increment after a failed attempt), Newton iterations, the
+    smallest increment size tried [step time]."""
+    attempts = len(re.findall(r"^ increment \d+ attempt \d+", logtxt, re.M))
+    converged = len(re.findall(r"^ convergence", logtxt, re.M))
+    iterations = len(re.findall(r"^ iteration \d+", logtxt, re.M))
+    sizes = [float(x) for x in re.findall(r"^ increment size=\s*(\S+)", logtxt, re.M)]
+    retries = len(re.findall(r"^ increment \d+ attempt (?:[2-9]|\d\d+)\b", logtxt, re.M))
+    return dict(attempts=attempts, increments=converged, cutbacks=retries, iterations=iterations,
+                min_increment=min(sizes) if sizes else None)
+
+
 def state_check(datfile, info):
     """Restart runs: ccx's nodal reactions at cellflow's prescribed state (end of the first step):
     the z force on the vertices cellflow's plates act on (top, bottom) and the reactions on every
@@ -369,6 +408,30 @@ def state_check(datfile, info):
     return tot, (blocks[-1] if blocks else {})
 
 
+def write_states(frd, info, X, T, out, converged):
+    """ccx's cell states (the .frd's U blocks of a load run) as a cellflow-like H5MD file for
+    departure_state.py: position frames [m] with the deformation as their time, the corner
+    connectivity, the mid-side nodes (C3D10) after the corners.  Only blocks at the step times of
+    converged increments (`converged`, the .dat rows' times): after "too many cutbacks" ccx writes
+    the diverged attempt as a last block."""
+    blocks = rr.read_frd_disp3(frd)
+    n = info["cell_nodes"]
+    s = info["steps"][0]
+    times, frames = [], []
+    for t, U in blocks:
+        if len(U) < n or not any(abs(t - tc) < 1e-5 * max(tc, 1e-3) for tc in converged):
+            continue
+        u = np.array([U[i + 1] for i in range(n)])
+        times.append((s["d0"] + (s["d1"] - s["d0"]) * t ** s["amp_p"]) / (2 * R_UM))
+        frames.append((X[:n] + u) * 1e-6)
+    with h5py.File(out, "w") as f:
+        f["particles/cell/position/value"] = np.array(frames)
+        f["particles/cell/position/time"] = np.array(times)
+        f["particles/cell/position/step"] = np.arange(len(times))
+        f["connectivity/cell"] = T.astype(np.int32)
+    return len(times)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("result")
@@ -384,6 +447,13 @@ def main():
     ap.add_argument("--contact", default="s2s", choices=["s2s", "n2s"],
                     help="ccx contact: surface to surface (penalty over the cell's faces) or node to surface")
     ap.add_argument("--controls", default=None, help="ccx *CONTROLS time incrementation line, e.g. 8,10,9,40")
+    ap.add_argument("--midside", default="straight", choices=["straight", "sphere"],
+                    help="C3D10 mid-side nodes: edge midpoints, or boundary ones on the sphere as cellflow's "
+                         "ELEMENT_QUADRATIC_TET (physics/mesh/quadratic_tets.cc)")
+    ap.add_argument("--states-h5", default=None,
+                    help="load runs: also write ccx's cell states (.frd) to this H5 file for departure_state.py")
+    ap.add_argument("--frd-every", type=int, default=0,
+                    help="output every N increments (0: 1 for C3D4, 4 for C3D10; ccx applies it to the .dat too)")
     ap.add_argument("--deck-only", action="store_true")
     ap.add_argument("--parse-only", action="store_true")
     a = ap.parse_args()
@@ -395,7 +465,8 @@ def main():
         frame = min(range(1, len(fstep)), key=lambda k: abs(defs.get(int(fstep[k]), 9.0) - a.at))
     name = "cfmesh_%s_%s%s" % (a.eltype, a.mode, a.tag)
     deck, info = build(pos, T, a.eltype, a.mode, frame, a.eps, a.ninc, kfac=a.kfac, w=a.w, controls=a.controls,
-                       c0_r=a.c0, contact=a.contact)
+                       c0_r=a.c0, contact=a.contact, midside_mode=a.midside,
+                       frd_every=a.frd_every)
     info.update(contact=a.contact, kfac=a.kfac, controls=a.controls, c0_r=a.c0, p0_pa=P0_E * E_PA if a.c0 else None)
     info["result"] = os.path.abspath(a.result)
     os.makedirs(os.path.join(HERE, "decks"), exist_ok=True)
@@ -425,7 +496,8 @@ def main():
     rows = parse(os.path.join(wd, "job.dat"), info)
     logtxt = open(os.path.join(wd, "ccx.log")).read() if os.path.exists(os.path.join(wd, "ccx.log")) else ""
     info.update(ok="Job finished" in logtxt and "*ERROR" not in logtxt, seconds=dt and round(dt, 1),
-                cpu_seconds=cpu and round(cpu, 1), points=len(rows), reached=rows[-1][2] if rows else 0.0)
+                cpu_seconds=cpu and round(cpu, 1), points=len(rows), reached=rows[-1][2] if rows else 0.0,
+                **log_stats(logtxt))
     if a.mode == "restart" and rows:
         tot, nodal = state_check(os.path.join(wd, "job.dat"), info)
         P = pos[frame]
@@ -447,16 +519,30 @@ def main():
             free_node_reaction_max_n=float(np.sqrt((free ** 2).sum(axis=1)).max()) * 1e-12 if len(free) else None,
             contact_vertices=len(contact))
         print(json.dumps(info["state_check"], indent=1))
+    if a.states_h5 and a.mode == "load":
+        lines = deck.splitlines()
+        i0 = lines.index("*NODE, NSET=NALL") + 1
+        Xn = np.array([[float(x) for x in ln.split(",")[1:]] for ln in lines[i0:i0 + info["cell_nodes"]]])
+        k = write_states(os.path.join(wd, "job.frd"), info, Xn, orient(pos[0], T), a.states_h5,
+                         [r[1] for r in rows])
+        print("%d states -> %s" % (k, a.states_h5))
     with open(os.path.join(HERE, "curves", name + ".csv"), "w") as f:
         f.write("step,time,deformation,force_top_n,force_bottom_n,elastic_energy_j\n")
         for r in rows:
             f.write("%d,%.6g,%.8g,%.8g,%.8g,%.8g\n" % r)
     jf = os.path.join(HERE, "results_cfmesh.json")
     allres = json.load(open(jf)) if os.path.exists(jf) else {}
+    if a.parse_only and name in allres:  # keep the run's measured times and exit status
+        for k in ("seconds", "cpu_seconds", "rc"):
+            if allres[name].get(k) is not None:
+                info[k] = allres[name][k]
     allres[name] = info
     json.dump(allres, open(jf, "w"), indent=1, sort_keys=True)
-    print("%s ok=%s wall %s s cpu %s s points %d reached %.4f nodes %d" % (
-        name, info["ok"], info["seconds"], info["cpu_seconds"], len(rows), info["reached"], info["nodes"]), flush=True)
+    print("%s ok=%s wall %s s cpu %s s points %d reached %.4f nodes %d; %d increments, %d attempts (%d cut-backs), "
+          "%d iterations, smallest increment %s" % (
+              name, info["ok"], info["seconds"], info["cpu_seconds"], len(rows), info["reached"], info["nodes"],
+              info["increments"], info["attempts"], info["cutbacks"], info["iterations"], info["min_increment"]),
+          flush=True)
 
 
 if __name__ == "__main__":

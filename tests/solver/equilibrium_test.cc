@@ -225,6 +225,69 @@ TEST(Equilibrium, TwoThreadsReachTheEquilibriumOfOne) {
   EXPECT_NEAR(reactions[1], reactions[0], 1e-6 * reactions[0]);
 }
 
+// The stall rule of solve(): a residual within 10 x the tolerance that has
+// not halved in 20 Newton iterations fails at once as stalled, instead of
+// spending max_newton_iterations. The rounding floor of the residual makes
+// such a solve without any contrivance: from a perturbed equilibrium, exact
+// Newton first runs to a tolerance nobody can reach (never within 10 x of
+// it, so no stall: it runs out of iterations and shows the floor), then the
+// same solve with the tolerance at a quarter of the lowest residual of that
+// run (measured: the floor is flat within 1.1-1.4e-14, so its band of
+// 10 x the tolerance holds it and the tolerance is out of reach).
+TEST(Equilibrium, NewtonAtTheRoundingFloorStopsAsStalled) {
+  const Problem p = make_problem(300, 0.5);
+  std::vector<double> start;
+  {
+    EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, options(1e-8));
+    start = compressed_state(p, solver, 0.1);
+  }
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> noise(-2e-4 * kRadius, 2e-4 * kRadius);
+  for (double& c : start) c += noise(rng);
+  const contact::Obstacles plates = p.plates(0.2 * kRadius);
+  constexpr int kMaxIterations = 80;
+  auto floor_options = [](double tolerance) {
+    EquilibriumOptions o = options(tolerance);
+    o.max_forcing_term = 1e-12;  // exact Newton: at the floor within a few iterations
+    o.max_cg_iterations = 20000;
+    o.max_newton_iterations = kMaxIterations;
+    return o;
+  };
+  EquilibriumSolver unreachable(p.body, p.surface, p.mesh.positions_m, floor_options(1e-30));
+  std::vector<double> y = start;
+  const EquilibriumReport floor_run = unreachable.solve(plates, y);
+  ASSERT_FALSE(floor_run.converged);
+  EXPECT_EQ(floor_run.cause, FailureCause::kNotConverged);
+  ASSERT_EQ(floor_run.newton_iterations, kMaxIterations) << floor_run.message;  // ran out, no stall
+  EXPECT_GT(floor_run.residual_history.front(), 1e-3);                          // the perturbation is felt
+  const double lowest =
+      *std::min_element(floor_run.residual_history.begin(), floor_run.residual_history.end());
+  EXPECT_LT(lowest, 1e-11);  // a rounding floor, not a Newton that failed
+  std::printf("rounding floor of the relative residual: %.3g\n", lowest);
+
+  const double tolerance = 0.25 * lowest;
+  EquilibriumSolver at_floor(p.body, p.surface, p.mesh.positions_m, floor_options(tolerance));
+  y = start;
+  const EquilibriumReport stalled = at_floor.solve(plates, y);
+  ASSERT_FALSE(stalled.converged);
+  EXPECT_EQ(stalled.cause, FailureCause::kNotConverged);
+  EXPECT_NE(stalled.message.find("stalled"), std::string::npos) << stalled.message;
+  EXPECT_LT(stalled.newton_iterations, kMaxIterations);
+  std::printf("stalled after %d Newton iterations: %s\n", stalled.newton_iterations, stalled.message.c_str());
+  // it fired within 10 x the tolerance, 20 iterations after the last halving
+  const std::vector<double>& h = stalled.residual_history;
+  EXPECT_LE(h.back(), 10.0 * tolerance);
+  std::size_t last_halving = 0;
+  double anchor = h[0];
+  for (std::size_t k = 0; k < h.size(); ++k) {
+    if (h[k] <= 0.5 * anchor) {
+      anchor = h[k];
+      last_halving = k;
+    }
+  }
+  EXPECT_EQ(h.size() - 1 - last_halving, 20u);
+}
+
 TEST(Equilibrium, InvertedInitialStateIsANumericalFailure) {
   const Problem p = make_problem(300, 1.0);
   EquilibriumSolver solver(p.body, p.surface, p.mesh.positions_m, options(1e-6));

@@ -21,6 +21,7 @@
 #include "physics/core/violations.h"
 #include "physics/mesh/graded_sphere_surface.h"
 #include "physics/mesh/tet_geometry.h"
+#include "physics/mesh/vertex_order.h"
 
 #define TETLIBRARY  // TetGen throws an int on failure instead of calling exit()
 #include <tetgen.h>
@@ -678,11 +679,16 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
     }
     remove_slivers(*graded, options.min_dihedral_deg, options.max_radius_edge_ratio, radius, nucleus_radius);
     for (double& x : graded->positions_m) x *= scale;
+    order_for_locality(*graded);
     return graded;
   }
   TetMesh& mesh = best.value();
   remove_slivers(mesh, options.min_dihedral_deg, options.max_radius_edge_ratio, radius, nucleus_radius);
   for (double& x : mesh.positions_m) x *= scale;
+  // TetGen's numbering is scattered (vertex_order.h); every later pass
+  // streams the mesh in this order. Last, so that the geometry is that of
+  // TetGen's numbering (the sliver removal visits the tets in order).
+  order_for_locality(mesh);
   return best;
 }
 

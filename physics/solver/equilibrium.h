@@ -224,6 +224,18 @@ class EquilibriumSolver {
   std::vector<double> volumetric_scratch_;  // C G p, one per vertex
   std::vector<double> reduction_slots_;     // per thread partial sums, two rounds
   std::vector<std::int64_t> work_prefix_;   // per vertex, prefix sum of its product work
+  // A thread's own copy of the CG direction p on its vertex range and the
+  // vertices around it that its products read, and of the volumetric
+  // gather C G p on the vertices its scatter reads (solve_linear: with these
+  // a team meets two barriers per CG iteration instead of four).
+  struct ThreadHalo {
+    std::vector<std::int32_t> p_halo;       // outside the range: p read by the product and gather
+    std::vector<std::int32_t> gather_halo;  // outside the range: C G p read by the scatter
+    std::vector<double> p;                  // 3 per vertex (only range + p_halo are used)
+    std::vector<double> volumetric_z;       // 1 per vertex (only range + gather_halo are used)
+  };
+  void build_thread_halos(int team);
+  std::vector<ThreadHalo> thread_halos_;  // one per thread of the last team; empty for one thread
 };
 
 }  // namespace cellflow::solver

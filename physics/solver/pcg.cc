@@ -100,15 +100,61 @@ std::int64_t EquilibriumSolver::split_vertex(int rank, int size) const {
   return std::lower_bound(work_prefix_.begin(), work_prefix_.end(), goal) - work_prefix_.begin();
 }
 
+void EquilibriumSolver::build_thread_halos(int team) {
+  // With the neighbour lists N(v) of K's block columns (the same lists as
+  // G's rows and G^T's columns when the gather is fused), a thread's product
+  // reads p on N(range), its scatter reads C G p on N(range), and the gather
+  // of the latter outside the range reads p on N(N(range)).
+  const std::int64_t nv = static_cast<std::int64_t>(body_->num_vertices);
+  const bool volumetric = tangent_.has_volumetric_operator();
+  thread_halos_.assign(static_cast<std::size_t>(team), ThreadHalo{});
+  std::vector<int> mark(static_cast<std::size_t>(nv));
+  for (int rank = 0; rank < team; ++rank) {
+    const std::int64_t vb = split_vertex(rank, team), ve = split_vertex(rank + 1, team);
+    ThreadHalo& halo = thread_halos_[static_cast<std::size_t>(rank)];
+    std::fill(mark.begin(), mark.end(), 0);
+    for (std::int64_t v = vb; v < ve; ++v) mark[v] = 1;
+    auto add_neighbours = [&](std::int64_t v, std::vector<std::int32_t>& to) {
+      for (std::int64_t k = block_neighbour_offsets_[v]; k < block_neighbour_offsets_[v + 1]; ++k) {
+        const std::int32_t w = block_neighbours_[k];
+        if (mark[w] == 0) {
+          mark[w] = 2;
+          to.push_back(w);
+        }
+      }
+    };
+    for (std::int64_t v = vb; v < ve; ++v) add_neighbours(v, halo.p_halo);
+    if (volumetric) {
+      halo.gather_halo = halo.p_halo;
+      for (const std::int32_t a : halo.gather_halo) add_neighbours(a, halo.p_halo);
+      std::sort(halo.gather_halo.begin(), halo.gather_halo.end());
+    }
+    std::sort(halo.p_halo.begin(), halo.p_halo.end());
+    halo.p.assign(static_cast<std::size_t>(3 * nv), 0.0);
+    halo.volumetric_z.assign(static_cast<std::size_t>(volumetric ? nv : 0), 0.0);
+  }
+}
+
 int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_tolerance,
                                     double absolute_tolerance, double shift, Eigen::VectorXd& dx,
                                     bool& negative_curvature) {
   // Projected PCG for (K + shift diag K) dx = rhs. The whole solve is one
   // parallel region: each thread owns a vertex range of every vector and does
   // the products, the preconditioner, the projections and the updates there;
-  // an iteration meets four barriers (p complete before the product, the
-  // volumetric gather before its scatter, and two reductions), where a region
-  // per product woke the team twice and left the vector work on one thread.
+  // an iteration meets two barriers, the two reductions, where a region per
+  // product woke the team twice and left the vector work on one thread: each
+  // thread updates its own copy of p on its range and on the vertices around
+  // it that its product reads (ThreadHalo), and does the volumetric gather
+  // C G p also on the vertices its scatter reads, so no thread waits for
+  // another's p or C G p (without the block layout, or with G's rows on
+  // other lists than K's, p and C G p are shared: four barriers).
+  // On a VM each barrier is a wake-up of tens of microseconds. The halo work
+  // is what a thread reads of the other ranges: on a generated mesh (in the
+  // locality order of mesh/vertex_order.h) split in two at 2967 vertices,
+  // 610 / 760 vertices of p (two rings) and 320 / 380 of the gather; in
+  // TetGen's scattered numbering it was nearly all of the other range. Every
+  // thread computes the same numbers as the vertex's owner (same operands,
+  // same order), so the iterates are those of the shared-vector solve.
   // The projections of q and z onto the null space of the held modes share
   // the reductions and the passes of the updates. The reductions add the
   // threads' partial sums in rank order: the result depends on the team
@@ -147,6 +193,13 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
   const int num_moments = held ? kMoments : 0;
   const double* centred = centred_reference_.data();
   const Preconditioning& pc = *preconditioning_;
+  const bool private_halos =
+      team > 1 && !block_neighbour_offsets_.empty() && (!volumetric || fused_volumetric_gather_);
+  if (!private_halos) {
+    thread_halos_.clear();
+  } else if (thread_halos_.size() != static_cast<std::size_t>(team)) {
+    build_thread_halos(team);
+  }
   int iterations = 0;
   bool curvature_failed = false;
 
@@ -155,10 +208,11 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
     const std::int64_t b = 3 * vb, e = 3 * ve;  // this thread's unknowns
     double* r = r_.data();
     double* z = z_.data();
-    double* p = p_.data();
     double* q = q_.data();
     double* x = dx.data();
-    double* zv = volumetric_scratch_.data();
+    ThreadHalo* halo = private_halos ? &thread_halos_[static_cast<std::size_t>(rank)] : nullptr;
+    double* p = halo != nullptr ? halo->p.data() : p_.data();
+    double* zv = halo != nullptr ? halo->volumetric_z.data() : volumetric_scratch_.data();
     int round = 0;
     // Adds every thread's values[0 .. count) in rank order (same total on
     // every thread); alternating slot sets make one barrier enough.
@@ -266,15 +320,34 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
     precondition(red);
     const double target = std::max(relative_tolerance * std::sqrt(red[0]), absolute_tolerance);
     if (std::sqrt(red[0]) <= target) return;
-    remove_modes(z, red + 2);
+    // p = P z + beta p on the range and, with private halos, around it
+    // (z is complete after the reduction; p there is this thread's own).
+    auto update_direction = [&](const HeldField& zh, double beta, bool first) {
+      auto vertex = [&](std::int64_t w) {
+        for (int a = 0; a < 3; ++a) {
+          const std::int64_t k = 3 * w + a;
+          p[k] = first ? z[k] - held_part(zh, w, a) : (z[k] - held_part(zh, w, a)) + beta * p[k];
+        }
+      };
+      for (std::int64_t w = vb; w < ve; ++w) vertex(w);
+      if (halo != nullptr) {
+        for (const std::int32_t w : halo->p_halo) vertex(w);
+      }
+    };
     double rz = red[1];
-    for (std::int64_t k = b; k < e; ++k) p[k] = z[k];
+    update_direction(held_field(red + 2), 0.0, true);
     for (int it = 0; it < options_.max_cg_iterations; ++it) {
+      if (halo == nullptr) {
 #pragma omp barrier
+      }
       // q = (K + shift diag K) p
       multiply_rows(p, q, shift, vb, ve, volumetric ? zv : nullptr);
       if (volumetric) {
+        if (halo != nullptr) {
+          for (const std::int32_t a : halo->gather_halo) tangent_.volumetric_gather(p, a, a + 1, zv);
+        } else {
 #pragma omp barrier
+        }
         tangent_.add_volumetric_scatter(zv, vb, ve, q);
       }
       // mu(q) and p.q
@@ -288,7 +361,7 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
           curvature_failed = true;
           iterations = it + 1;
         }
-        if (it == 0) std::copy(z + b, z + e, x + b);
+        if (it == 0) std::copy(p + b, p + e, x + b);  // p = P z
         return;
       }
       const double alpha = rz / curvature;
@@ -306,14 +379,7 @@ int EquilibriumSolver::solve_linear(const Eigen::VectorXd& rhs, double relative_
         return;
       }
       const double rz_next = red[1];
-      const double beta = rz_next / rz;
-      const HeldField zh = held_field(red + 2);
-      for (std::int64_t w = vb; w < ve; ++w) {
-        for (int a = 0; a < 3; ++a) {
-          const std::int64_t k = 3 * w + a;
-          p[k] = (z[k] - held_part(zh, w, a)) + beta * p[k];  // P z + beta p
-        }
-      }
+      update_direction(held_field(red + 2), rz_next / rz, false);
       rz = rz_next;
     }
     if (rank == 0) iterations = options_.max_cg_iterations;

@@ -108,17 +108,18 @@ TEST_P(RestTest, ForceFreeCellInFluidAtRestStaysAtRest) {
 INSTANTIATE_TEST_SUITE_P(Precisions, RestTest,
                          ::testing::Values(lb::Precision::kDouble, lb::Precision::kFloat));
 
-// Deforms the cell: an affine stretch with shear plus a deterministic
-// per-vertex perturbation of 0.05 lattice spacings.
+// Deforms the cell: an affine stretch with shear plus waves of 0.15 lattice
+// spacings and about 1.2 radii wavelength, a function of the position (not
+// of the vertex numbering, which the mesher may change).
 void deform(ImmersedCell& cell) {
   const std::size_t nv = cell.positions_lattice.size() / 3;
   for (std::size_t v = 0; v < nv; ++v) {
     double* x = &cell.positions_lattice[3 * v];
     const double r[3] = {x[0] - cell.origin_lattice[0], x[1] - cell.origin_lattice[1],
                          x[2] - cell.origin_lattice[2]};
-    x[0] = cell.origin_lattice[0] + 1.2 * r[0] + 0.1 * r[1] + 0.05 * std::sin(1.0 + 3.0 * v);
-    x[1] = cell.origin_lattice[1] + 0.9 * r[1] + 0.05 * std::sin(2.0 + 5.0 * v);
-    x[2] = cell.origin_lattice[2] + 0.95 * r[2] + 0.05 * std::sin(3.0 + 7.0 * v);
+    x[0] = cell.origin_lattice[0] + 1.2 * r[0] + 0.1 * r[1] + 0.15 * std::sin(1.0 + 1.1 * r[1] + 0.7 * r[2]);
+    x[1] = cell.origin_lattice[1] + 0.9 * r[1] + 0.15 * std::sin(2.0 + 1.3 * r[2] + 0.5 * r[0]);
+    x[2] = cell.origin_lattice[2] + 0.95 * r[2] + 0.15 * std::sin(3.0 + 0.9 * r[0] + 1.2 * r[1]);
   }
 }
 

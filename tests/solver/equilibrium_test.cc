@@ -140,11 +140,14 @@ TEST(Equilibrium, NewtonConvergesQuadraticallyNearTheSolution) {
   EXPECT_GT(r[0], 1e-3);  // the perturbation is felt
   // from there to 1e-12 in a handful of iterations
   EXPECT_LE(report.newton_iterations, 5);
-  // quadratic: r_{k+1} <= C r_k^2 with C = 100 (measured C ~ 60) while above
-  // the rounding floor (~1e-13); linear convergence would leave r_{k+1} ~ r_k / 10
+  // quadratic: r_{k+1} <= C r_k^2 with C = 100 (measured C ~ 25-60) while
+  // r_{k+1} is above the tolerance: below it the step is that of a linear
+  // solve stopped at half the tolerance in force (the last iteration's
+  // absolute CG stop, measured 4.7e-13 after 4.3e-9), and the rounding floor
+  // is ~1e-14; linear convergence would leave r_{k+1} ~ r_k / 10
   int checked = 0;
   for (std::size_t k = 0; k + 1 < r.size(); ++k) {
-    if (r[k] < 1e-2 && r[k + 1] > 1e-13) {
+    if (r[k] < 1e-2 && r[k + 1] > 1e-12) {
       EXPECT_LE(r[k + 1], 100.0 * r[k] * r[k]) << "iteration " << k << ": " << r[k] << " -> " << r[k + 1];
       ++checked;
     }
@@ -257,9 +260,18 @@ TEST(Equilibrium, NewtonAtTheRoundingFloorStopsAsStalled) {
   std::vector<double> y = start;
   const EquilibriumReport floor_run = unreachable.solve(plates, y);
   ASSERT_FALSE(floor_run.converged);
-  EXPECT_EQ(floor_run.cause, FailureCause::kNotConverged);
-  ASSERT_EQ(floor_run.newton_iterations, kMaxIterations) << floor_run.message;  // ran out, no stall
-  EXPECT_GT(floor_run.residual_history.front(), 1e-3);                          // the perturbation is felt
+  // It runs out of iterations, or (depending on the round-off of the path:
+  // measured with another vertex numbering, after 54 iterations at 1.12e-14)
+  // its line search finds no decrease of the energy at the floor; never a
+  // stall, whose band (10 x the tolerance) is out of reach.
+  if (floor_run.cause == FailureCause::kLineSearch) {
+    EXPECT_LT(floor_run.residual, 1e-11) << floor_run.message;
+  } else {
+    EXPECT_EQ(floor_run.cause, FailureCause::kNotConverged);
+    EXPECT_EQ(floor_run.newton_iterations, kMaxIterations) << floor_run.message;  // ran out
+  }
+  EXPECT_EQ(floor_run.message.find("stalled"), std::string::npos) << floor_run.message;
+  EXPECT_GT(floor_run.residual_history.front(), 1e-3);  // the perturbation is felt
   const double lowest =
       *std::min_element(floor_run.residual_history.begin(), floor_run.residual_history.end());
   EXPECT_LT(lowest, 1e-11);  // a rounding floor, not a Newton that failed

@@ -40,13 +40,16 @@ constexpr int kSlowNewtonIterations = 2;
 constexpr double kHardStateForcing = 1e-2;
 // Below this many vertices the tangent is assembled on one thread whatever
 // the team: the assembly meets a barrier per tet colour (elastic::
-// TangentAssembler), and on the curve (2967 vertices, 2 threads)
-// those were 80k of the run's 155k voluntary context switches (74.5k with the
-// assembly on one thread; CPU 26.7 -> 22.4 s), each a wake-up of tens of
-// microseconds on a VM, against the ~5 ms per Newton iteration that a second
-// thread takes off the assembly. The crossover is not measured; 6000 is the
-// scenes' choice of threads (quasi_static.cc).
-constexpr std::size_t kMinParallelAssemblyVertices = 6000;
+// TangentAssembler), each a wake-up of tens of microseconds on a VM. In
+// TetGen's scattered numbering a 2967-vertex mesh had 220 colours (80k of a
+// 2-thread run's 155k context switches on the curve); in the
+// locality order of generated meshes (mesh/vertex_order.h) it has 15, and
+// the 2-thread assembly pays: issue's curve 2 threads / 1 thread 0.70
+// (median of 4 alternating rounds; 0.98 with the assembly on one thread),
+// default compression spec 0.62 (median of 6). The same crossover as the
+// linear solve's (kMinParallelDofs, pcg.cc). Meshes read from a file keep
+// their numbering, and may have many more colours.
+constexpr std::size_t kMinParallelAssemblyVertices = 2000;
 // Where a linear solve stops at the latest: this fraction of the residual
 // tolerance (absolute, in force), see solve().
 constexpr double kFinalLinearTolerance = 0.5;

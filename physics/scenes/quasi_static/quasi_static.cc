@@ -309,7 +309,13 @@ double cell_extent(const Setup& setup) {
 // team's wake-ups cost more than the second core gives. Since the linear
 // solve is one parallel region (solver/pcg.cc), 2 threads beat 1 on the
 // issue's 3000-vertex curve under load (26.7 s against 31.6 s, load 9) but
-// not on the 40 points to 0.5 (equal); unchanged until measured idle.
+// not on the 40 points to 0.5 (equal). Since the two-barrier CG and the
+// locality-ordered mesh with its 2-thread assembly (2026-12-03), 2 threads
+// asked for (-j 2) take 0.62 of the 1-thread time on the 40 points to 0.5,
+// median of 6 rounds; but on a VM whose host steals a vCPU (steal ticks of
+// 3-19 s in a 5-20 s run) a 2-thread team took 2-2.5 x the 1-thread time
+// while the 1-thread run slowed by ~10 %: one thread stays the choice below
+// the crossover, where the second core gives the least.
 constexpr std::size_t kMinVerticesForThreads = 6000;
 
 int solve_threads(int requested, std::size_t vertices) {

@@ -639,6 +639,16 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
       max_volume *= std::max(1.0, count - outer_surface_count) / interior_target;
     }
   }
+  // The last steps of either mesh: the sliver removal, metres, and the
+  // locality order (TetGen's numbering is scattered, vertex_order.h; every
+  // later pass streams the mesh in this order). The order comes last so that
+  // the geometry is that of TetGen's numbering: the sliver removal visits the
+  // tets in order.
+  auto finish = [&](TetMesh& m) {
+    remove_slivers(m, options.min_dihedral_deg, options.max_radius_edge_ratio, radius, nucleus_radius);
+    for (double& x : m.positions_m) x *= scale;
+    order_for_locality(m);
+  };
   const double pole_spacing = options.pole_grading.pole_spacing_m / scale;
   if (pole_spacing > 0.0 && pole_spacing < spacing) {
     // The graded ring surface with the uniform mesh's bulk spacing and the
@@ -677,18 +687,10 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
           " m gives " + std::to_string(graded->num_vertices()) + " vertices, more than " +
           std::to_string(kMaxVertexCount));
     }
-    remove_slivers(*graded, options.min_dihedral_deg, options.max_radius_edge_ratio, radius, nucleus_radius);
-    for (double& x : graded->positions_m) x *= scale;
-    order_for_locality(*graded);
+    finish(*graded);
     return graded;
   }
-  TetMesh& mesh = best.value();
-  remove_slivers(mesh, options.min_dihedral_deg, options.max_radius_edge_ratio, radius, nucleus_radius);
-  for (double& x : mesh.positions_m) x *= scale;
-  // TetGen's numbering is scattered (vertex_order.h); every later pass
-  // streams the mesh in this order. Last, so that the geometry is that of
-  // TetGen's numbering (the sliver removal visits the tets in order).
-  order_for_locality(mesh);
+  finish(best.value());
   return best;
 }
 

@@ -4,20 +4,27 @@
 #include <boost/graph/adjacency_list.hpp>
 #include <boost/graph/cuthill_mckee_ordering.hpp>
 #include <cassert>
+#include <cstdint>
 #include <numeric>
 #include <utility>
+#include <vector>
 
 namespace cellflow::mesh {
 
+namespace {
+
+// The reverse Cuthill-McKee order of the vertex graph (two vertices adjacent
+// when they share a tet): new_index[old] for every vertex. It keeps a vertex's
+// neighbours within the graph's bandwidth of it, and a contiguous range of it
+// is a slab of level sets whose boundary with the next range is one level.
 std::vector<std::int32_t> locality_vertex_order(const TetMesh& mesh) {
   using Graph = boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS,
                                       boost::property<boost::vertex_color_t, boost::default_color_type,
                                                       boost::property<boost::vertex_degree_t, int>>>;
   using Vertex = boost::graph_traits<Graph>::vertex_descriptor;
   const std::size_t num_vertices = mesh.num_vertices();
-  // Each tet edge once per tet; setS-like deduplication is not needed for the
-  // order (a repeated edge only raises both degrees alike), but it keeps the
-  // degrees those of the mesh graph.
+  // Every tet edge, each once (an edge shared by several tets would otherwise
+  // be a multi-edge and raise the degrees the order starts from).
   std::vector<std::pair<std::int32_t, std::int32_t>> edges;
   edges.reserve(6 * mesh.num_tets());
   for (std::size_t t = 0; t < mesh.num_tets(); ++t) {
@@ -38,6 +45,8 @@ std::vector<std::int32_t> locality_vertex_order(const TetMesh& mesh) {
   for (std::size_t k = 0; k < num_vertices; ++k) new_index[order[k]] = static_cast<std::int32_t>(k);
   return new_index;
 }
+
+}  // namespace
 
 void order_for_locality(TetMesh& mesh) {
   assert(mesh.quadratic_tets.empty());

@@ -7,24 +7,18 @@
 // range: a thread of the linear solve reads p on nearly the whole mesh.
 #pragma once
 
-#include <cstdint>
-#include <vector>
-
 #include "physics/mesh/tet_mesh.h"
 
 namespace cellflow::mesh {
 
-// The reverse Cuthill-McKee order of the vertex graph (two vertices adjacent
-// when they share a tet): new_index[old] for every vertex. It keeps a vertex's
-// neighbours within the graph's bandwidth of it, and a contiguous range of it
-// is a slab of level sets whose boundary with the next range is one level.
-std::vector<std::int32_t> locality_vertex_order(const TetMesh& mesh);
-
-// Renumbers the vertices by locality_vertex_order and sorts the tets by their
-// smallest new vertex index (stable: the order within a tet and the regions
-// follow). Positions, tets, regions and the surface flags move together; the
-// geometry is unchanged. Not for quadratic meshes (call it before their
-// mid-edge nodes are added).
+// Renumbers the vertices in the reverse Cuthill-McKee order of the vertex
+// graph (two vertices adjacent when they share a tet), which keeps a vertex's
+// neighbours within the graph's bandwidth of it and makes a contiguous vertex
+// range a slab of level sets, and sorts the tets by their smallest new vertex
+// index (stable; the order within a tet and the regions follow). Positions,
+// tets, regions and the surface flags move together; the geometry is
+// unchanged. Not for quadratic meshes (call it before their mid-edge nodes
+// are added).
 void order_for_locality(TetMesh& mesh);
 
 }  // namespace cellflow::mesh

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -40,13 +41,14 @@ TEST(ShearFlowResolution, PredictedThicknessAndLattice) {
   EXPECT_NEAR(predicted_thickness_over_radius(1e-6), 2.0, 1e-5);
   EXPECT_NEAR(predicted_thickness_over_radius(2.0), 2.0 * std::sqrt(0.2344 / 1.7656), 1e-12);
   EXPECT_NEAR(predicted_thickness_over_radius(2.0), 0.729, 1e-3);
-  // peskin4 (4 nodes): cpr = 1.1 x 1.5 x 4 / (2 a1 / R), up to a multiple of 0.5
-  EXPECT_EQ(resolving_cells_per_radius(0.05, ibm::Kernel::kPeskin4), 4.0);  // the default 6 stays
-  EXPECT_EQ(resolving_cells_per_radius(0.4, ibm::Kernel::kPeskin4), 5.0);
-  EXPECT_EQ(resolving_cells_per_radius(1.0, ibm::Kernel::kPeskin4), 7.0);
-  EXPECT_EQ(resolving_cells_per_radius(2.0, ibm::Kernel::kPeskin4), 9.5);
+  // peskin4 (4 nodes): cpr = 1.1 x 0.75 x 4 / (2 a1 / R), up to a multiple of 0.5
+  EXPECT_EQ(resolving_cells_per_radius(0.05, ibm::Kernel::kPeskin4), 2.0);  // the default 6 stays
+  EXPECT_EQ(resolving_cells_per_radius(0.4, ibm::Kernel::kPeskin4), 2.5);
+  EXPECT_EQ(resolving_cells_per_radius(1.0, ibm::Kernel::kPeskin4), 3.5);
+  EXPECT_EQ(resolving_cells_per_radius(2.0, ibm::Kernel::kPeskin4), 5.0);  // the default 6 stays
+  EXPECT_EQ(resolving_cells_per_radius(8.0, ibm::Kernel::kPeskin4), 8.5);  // extrapolated D 0.92
   // a narrower kernel needs a coarser lattice
-  EXPECT_EQ(resolving_cells_per_radius(2.0, ibm::Kernel::kPeskin3), 7.0);
+  EXPECT_EQ(resolving_cells_per_radius(2.0, ibm::Kernel::kPeskin3), 3.5);
   // at the chosen lattice the prediction clears the margin
   for (const double ca : {0.8, 1.0, 1.6, 2.0}) {
     const double cpr = resolving_cells_per_radius(ca, ibm::Kernel::kPeskin4);
@@ -54,8 +56,8 @@ TEST(ShearFlowResolution, PredictedThicknessAndLattice) {
         << ca;
   }
   // a measured thickness scales the lattice to the margin, at least 1.25 x
-  EXPECT_EQ(refined_cells_per_radius(6.0, 0.73), 14.0);  // 6 x 1.65 / 0.73 = 13.6
-  EXPECT_EQ(refined_cells_per_radius(8.0, 1.45), 10.0);  // 9.1 < 1.25 x 8
+  EXPECT_EQ(refined_cells_per_radius(6.0, 0.3), 16.5);  // 6 x 0.825 / 0.3
+  EXPECT_EQ(refined_cells_per_radius(6.0, 0.7), 7.5);   // 7.07 < 1.25 x 6
 }
 
 ShearFlowParams large_ca_params() {
@@ -71,6 +73,9 @@ ShearFlowParams large_ca_params() {
 
 TEST(ShearFlowResolution, PlanRaisesTheLatticeAtLargeCaOnly) {
   ShearFlowParams p = large_ca_params();
+  // Re_p 0.024 at Ca = 2, raised to 3 x 0.1 / (a3 / R)^2 = 0.04: 4 cells per
+  // radius within the Mach limit (E = 10 Pa, Re_p 0.24, is not)
+  p.cell.material.youngs_modulus_pa = 1.0;
   p.capillary_number = 0.05;
   StatusOr<ShearFlowSetup> small = plan_shear_flow(p);
   ASSERT_TRUE(small.ok()) << small.status().to_string();
@@ -78,56 +83,88 @@ TEST(ShearFlowResolution, PlanRaisesTheLatticeAtLargeCaOnly) {
   EXPECT_EQ(small->nx, 60);
   EXPECT_TRUE(small->resolution_note.empty());
 
+  // the default lattice resolves the Ca = 2 cell (0.729 x 6 / 4 = 1.09 kernel widths predicted)
   p.capillary_number = 2.0;
   StatusOr<ShearFlowSetup> large = plan_shear_flow(p);
   ASSERT_TRUE(large.ok()) << large.status().to_string();
-  EXPECT_EQ(large->cells_per_radius, 9.5);
-  EXPECT_EQ(large->nx, 95);  // 10 radii
+  EXPECT_EQ(large->cells_per_radius, 6.0);
+  EXPECT_GE(large->predicted_thickness_over_kernel, kThicknessMargin * kMinThicknessOverKernel);
+  // a coarser one is raised
+  p.numerics.cells_per_radius = 4.0;
+  large = plan_shear_flow(p);
+  ASSERT_TRUE(large.ok()) << large.status().to_string();
+  EXPECT_EQ(large->cells_per_radius, 5.0);
+  EXPECT_EQ(large->nx, 50);  // 10 radii
   EXPECT_GE(large->predicted_thickness_over_kernel, kThicknessMargin * kMinThicknessOverKernel);
   StatusOr<PlannedShearFlow> planned = plan_shear_flow_run(p);
   ASSERT_TRUE(planned.ok());
-  EXPECT_EQ(planned->params().numerics.cells_per_radius, 9.5);
+  EXPECT_EQ(planned->params().numerics.cells_per_radius, 5.0);
 
   // a coarse lattice at small Ca (the sphere itself under-resolved) stays
   p.capillary_number = 0.2;  // predicted 2 a1 = 1.59 R: not flattened
   p.numerics.cells_per_radius = 3.0;
   EXPECT_EQ(plan_shear_flow(p)->cells_per_radius, 3.0);
-  p.capillary_number = 0.4;  // 1.34 R: raised to 5
-  EXPECT_EQ(plan_shear_flow(p)->cells_per_radius, 5.0);
+  p.capillary_number = 1.0;  // 0.98 R: raised to 3.5
+  EXPECT_EQ(plan_shear_flow(p)->cells_per_radius, 3.5);
   p.capillary_number = 2.0;
 
   // a finer lattice set by the user stays; resolve_thickness off keeps the coarse one
   p.numerics.cells_per_radius = 12.0;
   EXPECT_EQ(plan_shear_flow(p)->cells_per_radius, 12.0);
-  p.numerics.cells_per_radius = 6.0;
+  p.numerics.cells_per_radius = 4.0;
   p.numerics.resolve_thickness = false;
   StatusOr<ShearFlowSetup> off = plan_shear_flow(p);
   ASSERT_TRUE(off.ok());
-  EXPECT_EQ(off->cells_per_radius, 6.0);
-  EXPECT_LT(off->predicted_thickness_over_kernel, kMinThicknessOverKernel);  // 0.729 x 6 / 4 = 1.09
+  EXPECT_EQ(off->cells_per_radius, 4.0);
+  // 0.729 x 4 / 4 = 0.73
+  EXPECT_LT(off->predicted_thickness_over_kernel, kThicknessMargin * kMinThicknessOverKernel);
 
   // the resolving lattice over the memory limit: the coarse one, with the reason
   p.numerics.resolve_thickness = true;
-  p.numerics.memory_limit_bytes = 40e6;  // 60 x 90 x 30 fits, 95 x 143 x 48 does not
+  p.numerics.memory_limit_bytes = 7e6;  // 40 x 60 x 20 (4.8 MB) fits, 50 x 75 x 25 (9.4 MB) does not
   StatusOr<ShearFlowSetup> refused = plan_shear_flow(p);
   ASSERT_TRUE(refused.ok()) << refused.status().to_string();
-  EXPECT_EQ(refused->cells_per_radius, 6.0);
-  EXPECT_NE(refused->resolution_note.find("cells_per_radius = 9.5"), std::string::npos)
+  EXPECT_EQ(refused->cells_per_radius, 4.0);
+  EXPECT_NE(refused->resolution_note.find("cells_per_radius = 5"), std::string::npos)
       << refused->resolution_note;
 }
 
+TEST(ShearFlowResolution, StokesTargetAlsoBoundsTheLongCell) {
+  // The paper's flow: gammadot = 4 / s, mu = eta gammadot / Ca, Re_p 1.4e-4.
+  ShearFlowParams p = large_ca_params();
+  for (const double ca : {0.05, 0.5, 2.0}) {
+    p.capillary_number = ca;
+    p.cell.material.youngs_modulus_pa = 2.0 * 1.48 * p.fluid_viscosity_pa_s * 4.0 / ca;
+    StatusOr<ShearFlowSetup> s = plan_shear_flow(p);
+    ASSERT_TRUE(s.ok()) << s.status().to_string();
+    EXPECT_NEAR(s->reynolds_number_physical, 1.44e-4, 1e-6) << ca;
+    // Re_p = min(target, 3 target / (a3 / R)^2), (a3 / R)^2 = (1 + D) / (1 - D)
+    const double d = roscoe_taylor_deformation_lambda1(ca);
+    const double expected = std::min(0.1, 3.0 * 0.1 * (1.0 - d) / (1.0 + d));
+    EXPECT_NEAR(s->reynolds_number_simulated, expected, 1e-12) << ca;
+  }
+  EXPECT_NEAR(plan_shear_flow(p)->reynolds_number_simulated, 0.0398, 1e-4);  // Ca = 2
+  p.capillary_number = 0.05;
+  p.cell.material.youngs_modulus_pa = 2.0 * 1.48 * p.fluid_viscosity_pa_s * 4.0 / 0.05;
+  EXPECT_DOUBLE_EQ(plan_shear_flow(p)->reynolds_number_simulated, 0.1);  // the small-Ca default as before
+  // a physical Re_p above the bound is kept (E = 10 Pa at Ca = 2: 0.243)
+  p = large_ca_params();
+  EXPECT_NEAR(plan_shear_flow(p)->reynolds_number_simulated, 0.243, 1e-3);
+}
+
 // A coarse Ca = 2 run whose predicted lattice the memory limit refuses: at 3
-// cells per radius the undeformed sphere is 1.5 kernel widths thick, so the
-// first samples fire the check, and the run restarts finer (within the limit)
-// until its restarts are used, then warns.
+// cells per radius the undeformed sphere is 1.5 kernel widths thick and the
+// flattening cell falls below 0.75 of them at strain ~2, which fires the
+// check; the run restarts finer (within the limit) until its restarts are
+// used, then warns.
 ShearFlowParams coarse_large_ca_params() {
   ShearFlowParams p = large_ca_params();
   p.numerics.cells_per_radius = 3.0;
   p.numerics.box_x_radii = 8.0;
   p.numerics.box_y_radii = 8.0;
   p.numerics.box_z_radii = 4.0;
-  p.numerics.memory_limit_bytes = 4e6;  // 9.5 cells per radius needs 76 x 76 x 38 nodes: refused
-  p.numerics.max_strain = 1.2;
+  p.numerics.memory_limit_bytes = 2.5e6;  // 5 cells per radius needs 40 x 40 x 20 nodes: refused
+  p.numerics.max_strain = 4.0;
   p.numerics.steady_tolerance = 0.0;
   return p;
 }
@@ -160,7 +197,7 @@ TEST(ShearFlowResolution, ThinCellRestartsOnAFinerLattice) {
   ASSERT_FALSE(samples.empty());
   EXPECT_EQ(samples.front().time_step, 0);
   EXPECT_EQ(samples.size(), r.samples.size());
-  EXPECT_NEAR(r.samples.back().strain_units, 1.2, 0.05);
+  EXPECT_NEAR(r.samples.back().strain_units, 4.0, 0.05);
   EXPECT_GT(r.wall_time_s, r.restarts.back().abandoned_wall_time_s);
   // restarts used up, the cell still thinner than the limit: a warning says so
   bool warned = false, noted = false;
@@ -175,7 +212,6 @@ TEST(ShearFlowResolution, ThinCellRestartsOnAFinerLattice) {
 
 TEST(ShearFlowResolution, RecordingCallerWithoutRestartKeepsItsLattice) {
   ShearFlowParams p = coarse_large_ca_params();
-  p.numerics.max_strain = 0.4;
   int samples = 0;
   ShearFlowCallbacks cb;
   cb.on_sample = [&](const ShearFlowSample&) { ++samples; };  // records, takes no restart

@@ -1,10 +1,17 @@
-// The steady-state rule of the shear-flow scene on synthetic D(t) series:
-// the drift of consecutive window means (shear_flow_is_steady).
+// The steady-state rule of the shear-flow scene on synthetic D(t) series and
+// on the exact transient of the homogeneous Kelvin-Voigt ellipsoid
+// (validation/shear_flow/kv_ellipsoid.py): the drift of consecutive window
+// means (shear_flow_is_steady).
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <functional>
+#include <map>
 #include <random>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "physics/scenes/shear_flow/shear_flow.h"
@@ -17,10 +24,14 @@ ShearFlowNumerics default_rule() {
   return n;
 }
 
+// The synthetic series below model small-Ca runs (D 0.05-0.23): the window is
+// steady_window_strain there.
+constexpr double kSmallCa = 0.05;
+
 // Feeds D(strain) sample by sample (sample 0 is the undeformed cell at strain 0)
 // and returns the strain at which the rule first fires, or -1.
 double stop_strain(const std::function<double(double)>& d_of_strain, const ShearFlowNumerics& n,
-                   double max_strain) {
+                   double max_strain, double ca = kSmallCa) {
   std::vector<ShearFlowSample> samples;
   const int count = static_cast<int>(std::lround(max_strain / n.sample_every_strain));
   for (int i = 0; i <= count; ++i) {
@@ -29,7 +40,7 @@ double stop_strain(const std::function<double(double)>& d_of_strain, const Shear
     s.strain_units = i * n.sample_every_strain;
     s.taylor_deformation = i == 0 ? 1e-5 : d_of_strain(s.strain_units);
     samples.push_back(s);
-    if (shear_flow_is_steady(samples, n)) return s.strain_units;
+    if (shear_flow_is_steady(samples, n, ca)) return s.strain_units;
   }
   return -1.0;
 }
@@ -71,7 +82,7 @@ TEST(ShearFlowSteadyRule, OvershootDoesNotStopWhileDFalls) {
   const double stop = stop_strain(d, n, 40.0);
   ASSERT_GT(stop, 0.0);
   double window_mean = 0.0;
-  const int w = steady_window_samples(n);
+  const int w = steady_window_samples(n, kSmallCa);
   for (int i = 0; i < w; ++i) window_mean += d(stop - i * n.sample_every_strain) / w;
   EXPECT_LE(std::fabs(window_mean / d_inf - 1.0), 0.005) << "stop " << stop;
   // Without the slope test the two window means around the peak agree early.
@@ -83,7 +94,7 @@ TEST(ShearFlowSteadyRule, OvershootDoesNotStopWhileDFalls) {
       s.strain_units = i * n.sample_every_strain;
       s.taylor_deformation = i == 0 ? 1e-5 : d(s.strain_units);
       samples.push_back(s);
-      const double drift = steady_window_drift(samples, n);
+      const double drift = steady_window_drift(samples, n, kSmallCa);
       if (std::isfinite(drift) && drift < n.steady_tolerance) means_only = s.strain_units;
     }
   }
@@ -98,11 +109,14 @@ TEST(ShearFlowSteadyRule, ZeroToleranceIsOff) {
 
 TEST(ShearFlowSteadyRule, FewerThanTwoWindowsHaveNoDrift) {
   const ShearFlowNumerics n = default_rule();
-  std::vector<ShearFlowSample> samples(2 * steady_window_samples(n));  // the first sample is not counted
-  for (ShearFlowSample& s : samples) s.taylor_deformation = 0.05;
-  EXPECT_TRUE(std::isnan(steady_window_drift(samples, n)));
-  samples.push_back(samples.back());
-  EXPECT_DOUBLE_EQ(steady_window_drift(samples, n), 0.0);
+  for (const double ca : {kSmallCa, 2.0}) {
+    // the first sample is not counted
+    std::vector<ShearFlowSample> samples(2 * steady_window_samples(n, ca));
+    for (ShearFlowSample& s : samples) s.taylor_deformation = 0.05;
+    EXPECT_TRUE(std::isnan(steady_window_drift(samples, n, ca))) << "Ca " << ca;
+    samples.push_back(samples.back());
+    EXPECT_DOUBLE_EQ(steady_window_drift(samples, n, ca), 0.0) << "Ca " << ca;
+  }
 }
 
 // D = D_inf (1 - A exp(-t / tau)) with noise: the rule stops within 2 strain
@@ -134,6 +148,70 @@ TEST(ShearFlowSteadyRule, StopsWithinTwoStrainUnitsOfTheHalfPercentPoint) {
     EXPECT_LE(std::fabs(stop - t05), 2.0) << "tau " << tau << ": stop " << stop << ", 0.5 % point " << t05;
     EXPECT_LE(window_mean_error(stop), 0.005) << "tau " << tau;
   }
+}
+
+TEST(ShearFlowSteadyRule, WindowGrowsWithCaBeyondTheShortest) {
+  const ShearFlowNumerics n = default_rule();
+  EXPECT_DOUBLE_EQ(steady_window_strain_for(n, 0.05), n.steady_window_strain);
+  EXPECT_DOUBLE_EQ(steady_window_strain_for(n, 2.0), kSteadyWindowStrainPerCa * 2.0);
+  EXPECT_EQ(steady_window_samples(n, 2.0), 80);  // 8 strain units at 0.1
+}
+
+// D(strain) of the exact homogeneous Kelvin-Voigt ellipsoid (lambda = 1,
+// Stokes) from the undeformed sphere, per Ca, sampled every 0.1 strain units.
+std::map<double, std::vector<double>> kv_ellipsoid_trajectories() {
+  std::ifstream in(KV_ELLIPSOID_CSV);
+  std::map<double, std::vector<double>> d_by_ca;
+  std::string line;
+  std::getline(in, line);  // header: ca,strain,D,...
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string ca, strain, d;
+    std::getline(row, ca, ',');
+    std::getline(row, strain, ',');
+    std::getline(row, d, ',');
+    d_by_ca[std::stod(ca)].push_back(std::stod(d));
+  }
+  return d_by_ca;
+}
+
+// The reference overshoots at large Ca (Ca = 2: D 0.851 at strain 9, 0.754 at
+// 24, then Roscoe's 0.766). The rule must stop on the steady value, not on the
+// peak or the trough: the window mean at the stop within 0.5 % of the final D
+// at every Ca, before the default max_strain.
+TEST(ShearFlowSteadyRule, StopsOnTheSteadyValueOfTheExactEllipsoidTransient) {
+  const std::map<double, std::vector<double>> trajectories = kv_ellipsoid_trajectories();
+  ASSERT_GE(trajectories.size(), 9u) << KV_ELLIPSOID_CSV;
+  const ShearFlowNumerics n = default_rule();
+  ASSERT_DOUBLE_EQ(n.sample_every_strain, 0.1);  // the reference's spacing
+  // Roscoe's lambda = 1 column (shared/validation/roscoe_elastic_sphere_shear.csv)
+  EXPECT_NEAR(trajectories.at(1.0).back(), 0.6135, 2e-4);
+  EXPECT_NEAR(trajectories.at(2.0).back(), 0.7656, 2e-4);
+  for (const auto& [ca, d] : trajectories) {
+    auto d_of_strain = [&](double t) {
+      return d[std::min(d.size() - 1, static_cast<std::size_t>(std::lround(t / n.sample_every_strain)))];
+    };
+    const double stop = stop_strain(d_of_strain, n, n.max_strain, ca);
+    ASSERT_GT(stop, 0.0) << "Ca " << ca << ": not steady by max_strain " << n.max_strain;
+    const int w = steady_window_samples(n, ca);
+    double window_mean = 0.0;
+    for (int i = 0; i < w; ++i) window_mean += d_of_strain(stop - i * n.sample_every_strain) / w;
+    std::printf("Ca %.2f: stop at strain %.1f, window mean %.4f, final %.4f (%+.2f %%)\n", ca, stop,
+                window_mean, d.back(), 100.0 * (window_mean / d.back() - 1.0));
+    EXPECT_LE(std::fabs(window_mean / d.back() - 1.0), 0.005)
+        << "Ca " << ca << ": stop at strain " << stop << ", window mean " << window_mean << ", final "
+        << d.back();
+  }
+  // The fixed 1.5-strain window (the rule before the Ca scaling, Ca = 0 here)
+  // stops on the Ca = 2 overshoot, 11 % above the steady D.
+  const std::vector<double>& d2 = trajectories.at(2.0);
+  auto d2_of_strain = [&](double t) {
+    return d2[std::min(d2.size() - 1, static_cast<std::size_t>(std::lround(t / n.sample_every_strain)))];
+  };
+  const double early = stop_strain(d2_of_strain, n, n.max_strain, 0.0);
+  ASSERT_GT(early, 0.0);
+  EXPECT_LT(early, 12.0);
+  EXPECT_GT(d2_of_strain(early) / d2.back() - 1.0, 0.1);
 }
 
 }  // namespace

@@ -1,8 +1,11 @@
-// Validation run (label long): steady Taylor deformation of the default cell
-// (default numerics) for Ca = 0.05 ... 1.6 beside Roscoe's lambda = 1 column
-// (shared/validation/roscoe_elastic_sphere_shear.csv; a trend above Ca ~ 0.2,
-// since Roscoe's elastic law is not neo-Hookean), and a run at Ca = 2 that
-// must stretch the cell by more than 100 % (the paper: 280 % of the diameter).
+// Validation run (label long): steady Taylor deformation in the paper's flow
+// (section 7.1: water, gammadot = 4 / s, the shear modulus set by Ca; default
+// numerics, so the scene runs it at its target Reynolds number) for
+// Ca = 0.05 ... 1.6 beside Roscoe's lambda = 1 column
+// (shared/validation/roscoe_elastic_sphere_shear.csv, which is the exact
+// homogeneous neo-Hookean ellipsoid: validation/shear_flow/README.md), and a
+// run at Ca = 2 that must stretch the cell by more than 100 % (the paper: 280 %
+// of the diameter).
 // Writes shear_flow_report.md and shear_flow_report.csv into the build folder.
 #include <gtest/gtest.h>
 
@@ -12,6 +15,7 @@
 #include <vector>
 
 #include "physics/scenes/shear_flow/shear_flow.h"
+#include "physics/scenes/shear_flow/shear_flow_resolution.h"
 
 #ifndef SHEAR_FLOW_REPORT_DIR
 #define SHEAR_FLOW_REPORT_DIR "."
@@ -55,10 +59,14 @@ RoscoeRow roscoe(double ca) {
 ShearFlowParams sweep_params(double ca) {
   ShearFlowParams p;
   p.cell.radius_m = 6e-6;
-  p.cell.material.youngs_modulus_pa = 10.0;
   p.cell.material.poisson_ratio = 0.48;
+  // mu = eta gammadot / Ca at gammadot = 4 / s (paper eq. 17), E = 2 (1 + nu) mu:
+  // Re_p = 1.4e-4, Stokes flow as in the paper and Roscoe. (E = 10 Pa at Ca = 2
+  // would mean gammadot = 6757 / s and Re_p 0.24: the cell, 5 R long, then
+  // stretches on by inertia, docs/shear_flow/large_ca.md.)
+  p.cell.material.youngs_modulus_pa =
+      2.0 * (1.0 + p.cell.material.poisson_ratio) * p.fluid_viscosity_pa_s * 4.0 / ca;
   p.capillary_number = ca;
-  p.numerics.max_strain = 30.0;
   p.numerics.threads = 1;  // beside other tests on a shared machine
   return p;                // default numerics and mesh otherwise
 }
@@ -77,9 +85,13 @@ TEST(ShearFlowSweep, SteadyDeformationAgainstRoscoeAndLargeStretch) {
      << defaults.cell.target_vertex_count << " vertices, box " << defaults.numerics.box_x_radii << " x "
      << defaults.numerics.box_y_radii << " x " << defaults.numerics.box_z_radii << " radii, "
      << ibm::kernel_name(defaults.numerics.ibm_kernel) << ", Re_p "
-     << defaults.numerics.target_reynolds_number
-     << ", nu 0.48, numerics.resolve_thickness on (cells per radius raised to the lattice that resolves "
-        "the predicted thickness; a run thinner than 1.5 kernel widths restarts finer once). Roscoe at Ca "
+     << defaults.numerics.target_reynolds_number << " (at most " << kLongAxisReynoldsAllowance
+     << " x that / (a3 / R)^2 for the predicted long half-axis a3: 0.04 at Ca 2), in the paper's flow "
+        "(water, gammadot = 4 / s, Stokes), nu 0.48, numerics.resolve_thickness on (cells per radius raised "
+        "to the lattice that resolves "
+        "the predicted thickness; a run thinner than "
+     << kMinThicknessOverKernel
+     << " kernel widths restarts finer once). Roscoe at Ca "
         "0.8 "
         "and 1.6 interpolated linearly in the table. The wall time of each point includes an abandoned "
         "coarse attempt where the run restarted.\n\n"
@@ -129,11 +141,16 @@ TEST(ShearFlowSweep, SteadyDeformationAgainstRoscoeAndLargeStretch) {
         << "Ca " << cas[i - 1] << " -> " << cas[i];
   }
   // Ca = 2: the paper's cell stretches to 280 % of its diameter (net strain
-  // 1.8); asserted here: more than 100 %.
+  // 1.8; issue 12: within 10 %; measured 1.837), and tank treads: the old
+  // collapse was 0.04 gammadot against Roscoe's 0.131 (measured 0.114).
   const ShearFlowResult large = run_shear_flow(sweep_params(2.0));
   report(2.0, large);
   EXPECT_TRUE(large.status.ok()) << large.status.to_string();
-  EXPECT_GT(large.steady_net_strain, 1.0);
+  EXPECT_EQ(large.stop, ShearFlowStop::kSteady);
+  EXPECT_NEAR(large.steady_net_strain, 1.8, 0.18);
+  EXPECT_GT(large.steady_taylor_deformation, results.back().steady_taylor_deformation);
+  EXPECT_GT(large.tank_treading_frequency_per_s / large.setup.shear_rate_per_s,
+            0.5 * roscoe(2.0).tank_over_gammadot);
   md << "\nThe paper (section 7.1) reports a net strain of 1.8 (280 % of the diameter) at Ca = 2.\n";
   for (const std::string& note : notes) md << "\n- " << note << "\n";
 }

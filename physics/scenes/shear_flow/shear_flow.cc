@@ -341,7 +341,7 @@ void time_loop(Run& run, lb::Fluid& fluid, lb::LeesEdwards* lees_edwards, ShearF
         result.stop = limit_stop;  // not reported: the run restarts
         break;
       }
-      if (is_steady(result, n)) {
+      if (is_steady(run, result)) {
         result.stop = ShearFlowStop::kSteady;
         break;
       }

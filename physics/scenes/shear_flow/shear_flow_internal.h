@@ -118,7 +118,7 @@ ShearFlowSample take_sample(Run& run, ShearFlowResult& result, std::int64_t step
 // Means over the last window of samples; the drift of D (steady_window_drift).
 void summarise(const Run& run, ShearFlowResult& result);
 
-// shear_flow_is_steady on the run's samples.
-bool is_steady(const ShearFlowResult& result, const ShearFlowNumerics& n);
+// shear_flow_is_steady on the run's samples at the run's Ca.
+bool is_steady(const Run& run, const ShearFlowResult& result);
 
 }  // namespace cellflow::scenes::shear_flow_detail

@@ -73,8 +73,8 @@ ShearFlowSample take_sample(Run& run, ShearFlowResult& result, std::int64_t step
 void summarise(const Run& run, ShearFlowResult& result) {
   if (result.samples.empty()) return;
   const ShearFlowNumerics& n = run.params->numerics;
-  const int window =
-      std::max(1, static_cast<int>(std::lround(n.steady_window_strain / n.sample_every_strain)));
+  const double ca = run.plan.setup.capillary_number;
+  const int window = steady_window_samples(n, ca);
   const int last = static_cast<int>(result.samples.size()) - 1;
   const int first = std::max(0, last - window);
   double d_sum = 0.0, incl_sum = 0.0, strain_sum = 0.0;
@@ -88,7 +88,7 @@ void summarise(const Run& run, ShearFlowResult& result) {
   result.steady_taylor_deformation = d_sum / count;
   result.steady_inclination_deg = incl_sum / count;
   result.steady_net_strain = strain_sum / count;
-  const double drift = steady_window_drift(result.samples, n);
+  const double drift = steady_window_drift(result.samples, n, ca);
   result.steady_relative_change = std::isfinite(drift) ? drift : 0.0;
   result.tank_treading_frequency_per_s = result.samples[last].tank_treading_frequency_per_s;
 
@@ -107,7 +107,8 @@ void summarise(const Run& run, ShearFlowResult& result) {
         number_text(2.0 * result.samples[last].semi_axes_m[0], 6) + " m is " +
         number_text(result.thickness_over_kernel, 6) + " kernel widths (below " +
         number_text(kMinThicknessOverKernel, 6) +
-        "), so D and the strain are overestimated; raise shear_flow.numerics.cells_per_radius to at least " +
+        "; D was checked down to 0.66 at Ca = 2), so D and the strain may be off; raise "
+        "shear_flow.numerics.cells_per_radius to at least " +
         number_text(refined_cells_per_radius(n.cells_per_radius, result.thickness_over_kernel), 6) +
         (n.resolve_thickness ? " (numerics.resolve_thickness restarts finer only where nothing was recorded "
                                "yet or the caller takes restarts, without checkpoints, up to " +
@@ -116,20 +117,26 @@ void summarise(const Run& run, ShearFlowResult& result) {
   }
 }
 
-bool is_steady(const ShearFlowResult& result, const ShearFlowNumerics& n) {
-  return shear_flow_is_steady(result.samples, n);
+bool is_steady(const Run& run, const ShearFlowResult& result) {
+  return shear_flow_is_steady(result.samples, run.params->numerics, run.plan.setup.capillary_number);
 }
 
 }  // namespace shear_flow_detail
 
 using namespace shear_flow_detail;
 
-int steady_window_samples(const ShearFlowNumerics& n) {
-  return std::max(1, static_cast<int>(std::lround(n.steady_window_strain / n.sample_every_strain)));
+double steady_window_strain_for(const ShearFlowNumerics& n, double capillary_number) {
+  return std::max(n.steady_window_strain, kSteadyWindowStrainPerCa * capillary_number);
 }
 
-double steady_window_drift(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n) {
-  const int window = steady_window_samples(n);
+int steady_window_samples(const ShearFlowNumerics& n, double capillary_number) {
+  return std::max(1, static_cast<int>(
+                         std::lround(steady_window_strain_for(n, capillary_number) / n.sample_every_strain)));
+}
+
+double steady_window_drift(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n,
+                           double capillary_number) {
+  const int window = steady_window_samples(n, capillary_number);
   const int count = static_cast<int>(samples.size());
   // Two full windows after the undeformed first sample (index 0).
   if (count - 1 < 2 * window) return std::numeric_limits<double>::quiet_NaN();
@@ -144,8 +151,9 @@ double steady_window_drift(const std::vector<ShearFlowSample>& samples, const Sh
   return std::fabs(last - previous) / last;
 }
 
-double steady_window_trend(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n) {
-  const int window = steady_window_samples(n);
+double steady_window_trend(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n,
+                           double capillary_number) {
+  const int window = steady_window_samples(n, capillary_number);
   const int count = static_cast<int>(samples.size());
   if (window < 2 || count - 1 < window) return std::numeric_limits<double>::quiet_NaN();
   double x_mean = 0.0, d_mean = 0.0;
@@ -163,19 +171,20 @@ double steady_window_trend(const std::vector<ShearFlowSample>& samples, const Sh
   }
   if (!(sxx > 0.0) || !(d_mean > 0.0)) return std::numeric_limits<double>::quiet_NaN();
   // least-squares slope dD/d(strain) times the window length, relative to the mean
-  return std::fabs(sxy / sxx) * n.steady_window_strain / d_mean;
+  return std::fabs(sxy / sxx) * steady_window_strain_for(n, capillary_number) / d_mean;
 }
 
-bool shear_flow_is_steady(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n) {
+bool shear_flow_is_steady(const std::vector<ShearFlowSample>& samples, const ShearFlowNumerics& n,
+                          double capillary_number) {
   if (!(n.steady_tolerance > 0.0)) return false;
-  const double drift = steady_window_drift(samples, n);
+  const double drift = steady_window_drift(samples, n, capillary_number);
   if (!(std::isfinite(drift) && drift < n.steady_tolerance)) return false;
   // Two window means straddling an overshoot of D agree while D still falls
   // (examples/shear_flow.json: 0.9 % above its final value at the stop
   // without this test); the slope over the last window catches that. Three
   // tolerances: tighter, and the tank-treading wobble (+-0.7 %, period 6.5
   // strain units) at Ca = 0.02-0.1 delays the stop (docs/accuracy/shear_flow.md).
-  const double trend = steady_window_trend(samples, n);
+  const double trend = steady_window_trend(samples, n, capillary_number);
   return std::isfinite(trend) && trend < kSteadyTrendFactor * n.steady_tolerance;
 }
 

@@ -157,9 +157,15 @@ StatusOr<Plan> make_plan_at(const ShearFlowParams& params, std::string_view fiel
   // Re_p = rho gammadot R^2 / eta
   setup.reynolds_number_physical = params.fluid_density_kg_m3 * gammadot * radius * radius / eta;
   setup.simulated_density_kg_m3 = params.fluid_density_kg_m3;
-  if (n.target_reynolds_number > 0.0 && setup.reynolds_number_physical < n.target_reynolds_number) {
-    // rho_sim = Re_target eta / (gammadot R^2)
-    setup.simulated_density_kg_m3 = n.target_reynolds_number * eta / (gammadot * radius * radius);
+  // The target also bounds the deformed cell: its Reynolds number on the
+  // predicted long half-axis, Re_p (a3 / R)^2, at most kLongAxisReynoldsAllowance
+  // targets (binding from Ca of about 0.7 up).
+  const double elongation = predicted_long_axis_over_radius_squared(setup.capillary_number);
+  const double target_re_p =
+      std::min(n.target_reynolds_number, kLongAxisReynoldsAllowance * n.target_reynolds_number / elongation);
+  if (n.target_reynolds_number > 0.0 && setup.reynolds_number_physical < target_re_p) {
+    // rho_sim = Re_p,target eta / (gammadot R^2)
+    setup.simulated_density_kg_m3 = target_re_p * eta / (gammadot * radius * radius);
   }
   setup.reynolds_number_simulated = setup.simulated_density_kg_m3 * gammadot * radius * radius / eta;
 

@@ -52,6 +52,12 @@ double predicted_thickness_over_radius(double ca) {
   return 2.0 * std::sqrt((1.0 - d) / (1.0 + d));
 }
 
+double predicted_long_axis_over_radius_squared(double ca) {
+  const double d = std::clamp(roscoe_taylor_deformation_lambda1(ca), 0.0, 0.999);
+  // a3 / a1 = (1 + D) / (1 - D) with a1 a3 = R^2
+  return (1.0 + d) / (1.0 - d);
+}
+
 double resolving_cells_per_radius(double ca, ibm::Kernel kernel) {
   const double thickness = predicted_thickness_over_radius(ca);
   if (!(thickness > 0.0)) return kMaxResolvingCellsPerRadius;

@@ -175,6 +175,14 @@ std::map<double, std::vector<double>> kv_ellipsoid_trajectories() {
   return d_by_ca;
 }
 
+// D(strain) read from a trajectory sampled every n.sample_every_strain (the
+// last value beyond its end).
+std::function<double(double)> tabulated(const std::vector<double>& d, const ShearFlowNumerics& n) {
+  return [&d, step = n.sample_every_strain](double t) {
+    return d[std::min(d.size() - 1, static_cast<std::size_t>(std::lround(t / step)))];
+  };
+}
+
 // The reference overshoots at large Ca (Ca = 2: D 0.851 at strain 9, 0.754 at
 // 24, then Roscoe's 0.766). The rule must stop on the steady value, not on the
 // peak or the trough: the window mean at the stop within 0.5 % of the final D
@@ -188,9 +196,7 @@ TEST(ShearFlowSteadyRule, StopsOnTheSteadyValueOfTheExactEllipsoidTransient) {
   EXPECT_NEAR(trajectories.at(1.0).back(), 0.6135, 2e-4);
   EXPECT_NEAR(trajectories.at(2.0).back(), 0.7656, 2e-4);
   for (const auto& [ca, d] : trajectories) {
-    auto d_of_strain = [&](double t) {
-      return d[std::min(d.size() - 1, static_cast<std::size_t>(std::lround(t / n.sample_every_strain)))];
-    };
+    const auto d_of_strain = tabulated(d, n);
     const double stop = stop_strain(d_of_strain, n, n.max_strain, ca);
     ASSERT_GT(stop, 0.0) << "Ca " << ca << ": not steady by max_strain " << n.max_strain;
     const int w = steady_window_samples(n, ca);
@@ -205,9 +211,7 @@ TEST(ShearFlowSteadyRule, StopsOnTheSteadyValueOfTheExactEllipsoidTransient) {
   // The fixed 1.5-strain window (the rule before the Ca scaling, Ca = 0 here)
   // stops on the Ca = 2 overshoot, 11 % above the steady D.
   const std::vector<double>& d2 = trajectories.at(2.0);
-  auto d2_of_strain = [&](double t) {
-    return d2[std::min(d2.size() - 1, static_cast<std::size_t>(std::lround(t / n.sample_every_strain)))];
-  };
+  const auto d2_of_strain = tabulated(d2, n);
   const double early = stop_strain(d2_of_strain, n, n.max_strain, 0.0);
   ASSERT_GT(early, 0.0);
   EXPECT_LT(early, 12.0);

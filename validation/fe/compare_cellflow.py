@@ -100,6 +100,8 @@ def main():
     parser.add_argument("--numerics", default="{}")
     parser.add_argument("--cases", nargs="*", default=list(CASES))
     parser.add_argument("--vertices", type=int, default=0)
+    parser.add_argument("--mesh-file", default="", help="a Gmsh .msh v4 mesh in metres instead of the generated sphere "
+                        "(e.g. structured_sphere.py's, with the case's radius)")
     args = parser.parse_args()
     runner = os.path.join(args.build, "bin", "cellflow-run")
     env = dict(os.environ, OMP_WAIT_POLICY="passive")
@@ -112,6 +114,8 @@ def main():
             spec[scene]["numerics"] = numerics
         if args.vertices:
             spec[scene]["cell"]["targetVertexCount"] = args.vertices
+        if args.mesh_file:
+            spec[scene]["cell"]["meshFile"] = os.path.abspath(args.mesh_file)
         with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
             json.dump(spec, f)
         start = time.time()

@@ -22,6 +22,7 @@ import argparse
 import json
 import math
 import os
+import random
 import re
 import resource
 import shutil
@@ -280,7 +281,38 @@ def amplitude_lines(name, p=2.0, npts=41):
     return out
 
 
-def build(case, level, kfac=KFAC, eltype=ELTYPE, ninc=NINC, contact=None):
+def imperfect_surface(m, R, zc, facet, roughness, seed=1):
+    """Surface imperfections of the cell (issue 11, w = 0.25 departure): facet=True puts the
+    mid-side node of every surface face on the chord of its corners (a faceted meridian with
+    a kink at every corner ring, as cellflow's flat triangles have); roughness moves every
+    surface corner node radially by a uniform random fraction in [-roughness, roughness] of R
+    (seeded), the mid-side nodes following (on the chord if facet, else halfway)."""
+    rng = random.Random(seed)
+    surf = {}
+    for e, f in m.boundary_faces("CELL"):
+        c = m.elems["CELL"][e]
+        a, b, mid = c[f - 1], c[f % 4], c[4 + f - 1]
+        pa, pb = m.nodes[a - 1], m.nodes[b - 1]
+        if all(abs(math.hypot(p[0], p[1] - zc) - R) < 1e-6 * R for p in (pa, pb)):
+            surf[mid] = (a, b)
+    corners = sorted({n for ab in surf.values() for n in ab})
+    for n in corners:
+        r, z = m.nodes[n - 1]
+        # the axis and the mid plane keep their node on them (symmetry conditions)
+        s = 1.0 + (rng.uniform(-roughness, roughness) if roughness > 0 and r > 0 and abs(z - zc) > 1e-9 else 0.0)
+        m.nodes[n - 1] = (r * s, zc + (z - zc) * s)
+    for mid, (a, b) in surf.items():
+        pa, pb = m.nodes[a - 1], m.nodes[b - 1]
+        if facet:
+            m.nodes[mid - 1] = (0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1]))
+        elif roughness > 0:
+            r, z = m.nodes[mid - 1]
+            s = 0.5 * (math.hypot(pa[0], pa[1] - zc) + math.hypot(pb[0], pb[1] - zc)) / math.hypot(r, z - zc)
+            m.nodes[mid - 1] = (r * s, zc + (z - zc) * s)
+    return len(corners)
+
+
+def build(case, level, kfac=KFAC, eltype=ELTYPE, ninc=NINC, contact=None, facet=False, roughness=0.0):
     cfg = CASES[case]
     n = LEVELS[level]
     R, E, w = cfg["R"], cfg["E"], cfg["w"]
@@ -288,6 +320,8 @@ def build(case, level, kfac=KFAC, eltype=ELTYPE, ninc=NINC, contact=None):
     if cfg["kind"] == "plates":
         disk_quarter(m, "CELL", 0.0, R, n, +1, pole_beta=cfg.get("pole_beta", 0.0))
         plate(m, "PLATE", R, 2.6 * R, 0.2 * R, max(8, 2 * n), +1)
+        if facet or roughness > 0:
+            imperfect_surface(m, R, 0.0, facet, roughness)
     else:
         disk_quarter(m, "CELL", R, R, n, +1, pole_beta=cfg["pole_beta"])
         disk_quarter(m, "CELL", R, R, n, -1, pole_beta=cfg["pole_beta"])  # same grading: conforming mid-plane
@@ -339,7 +373,9 @@ def build(case, level, kfac=KFAC, eltype=ELTYPE, ninc=NINC, contact=None):
     # surfaces: cell outer faces (distance R from the centre)
     zc = 0.0 if cfg["kind"] == "plates" else R
 
-    def on_circle(p, cen, rad, tol=1e-6):
+    surf_tol = 1e-6 + 2.0 * roughness
+
+    def on_circle(p, cen, rad, tol=surf_tol):
         return abs(math.hypot(p[0] - cen[0], p[1] - cen[1]) - rad) < tol * rad
 
     def faces(name, pred):
@@ -1195,6 +1231,10 @@ def main():
     ap.add_argument("--increments", type=int, default=NINC, help="3-D: the largest increment is 1/N of the step")
     ap.add_argument("--model", default="eighth", choices=["eighth", "quarter"],
                     help="3-D: eighth sphere (x, y, z symmetry planes) or quarter (x and z planes)")
+    ap.add_argument("--facet", action="store_true",
+                    help="2-D plates: surface mid-side nodes on the chords (a faceted meridian)")
+    ap.add_argument("--roughness", type=float, default=0.0,
+                    help="2-D plates: random radial offset of the surface corner nodes, fraction of R")
     ap.add_argument("--analyse", action="store_true", help="3-D: only re-read the runs (curves, shapes)")
     a = ap.parse_args()
     if a.list:
@@ -1230,6 +1270,10 @@ def main():
                 kw["eltype"] = a.eltype
             if a.contact and a.contact != CONTACT:
                 kw["contact"] = a.contact
+            if a.facet:
+                kw["facet"] = True
+            if a.roughness > 0:
+                kw["roughness"] = a.roughness
             r = run_one(case, lv, tag=a.tag, **kw)
             allres.setdefault("runs", {})[r["run"]] = r
             json.dump(allres, open(resfile, "w"), indent=1, sort_keys=True)

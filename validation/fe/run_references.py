@@ -309,7 +309,6 @@ def imperfect_surface(m, R, zc, facet, roughness, seed=1):
             r, z = m.nodes[mid - 1]
             s = 0.5 * (math.hypot(pa[0], pa[1] - zc) + math.hypot(pb[0], pb[1] - zc)) / math.hypot(r, z - zc)
             m.nodes[mid - 1] = (r * s, zc + (z - zc) * s)
-    return len(corners)
 
 
 def build(case, level, kfac=KFAC, eltype=ELTYPE, ninc=NINC, contact=None, facet=False, roughness=0.0):

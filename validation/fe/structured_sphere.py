@@ -30,21 +30,11 @@ def octant_hexes(n, pole_beta):
     return m.nodes, [el[:8] for el in m.elems["CELL"]]
 
 
-class Merge:
-    def __init__(self):
-        self.xyz, self.key = [], {}
-
-    def node(self, p):
-        k = tuple(round(v * 1e9) for v in p)
-        if k not in self.key:
-            self.xyz.append(tuple(p))
-            self.key[k] = len(self.xyz) - 1
-        return self.key[k]
-
-
 def full_sphere(n, pole_beta):
+    """The octant mirrored into all eight, coincident nodes merged (run_references' Mesh3, 1-based
+    node ids: mg.nodes[i - 1])."""
     nodes, hexes = octant_hexes(n, pole_beta)
-    mg = Merge()
+    mg = rr.Mesh3()
     out = []
     for sx in (1, -1):
         for sy in (1, -1):
@@ -61,18 +51,19 @@ def unit(p):
 
 def tetrahedralise(mg, hexes):
     tets = []
-    on_sphere = lambda i: abs(math.sqrt(sum(v * v for v in mg.xyz[i])) - 1.0) < 1e-9
+    xyz = lambda i: mg.nodes[i - 1]
+    on_sphere = lambda i: abs(math.sqrt(sum(v * v for v in xyz(i))) - 1.0) < 1e-9
     for h in hexes:
-        centre = mg.node(tuple(sum(mg.xyz[i][d] for i in h) / 8.0 for d in range(3)))
+        centre = mg.node(tuple(sum(xyz(i)[d] for i in h) / 8.0 for d in range(3)))
         for face in rr.HEX_FACES:
             c = [h[k] for k in face]
-            fc = tuple(sum(mg.xyz[i][d] for i in c) / 4.0 for d in range(3))
+            fc = tuple(sum(xyz(i)[d] for i in c) / 4.0 for d in range(3))
             if all(on_sphere(i) for i in c):
                 fc = unit(fc)
             f = mg.node(fc)
             for a, b in zip(c, c[1:] + c[:1]):
-                tets.append([a, b, f, centre])
-    return tetrahedralise_orientation(mg.xyz, tets)
+                tets.append([a - 1, b - 1, f - 1, centre - 1])
+    return orient_positive(mg.nodes, tets)
 
 
 def tet_det(xyz, t):
@@ -82,7 +73,7 @@ def tet_det(xyz, t):
             + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]))
 
 
-def tetrahedralise_orientation(xyz, tets):
+def orient_positive(xyz, tets):
     """Positive orientation in Gmsh's convention: det[x1 - x0, x2 - x0, x3 - x0] > 0."""
     for t in tets:
         det = tet_det(xyz, t)
@@ -95,7 +86,7 @@ def tetrahedralise_orientation(xyz, tets):
 
 def jitter(xyz, tets, amplitude, seed):
     """Moves every vertex by a random vector of length up to amplitude x its shortest edge
-    (surface vertices tangentially, then back onto the sphere): an irregular mesh of the same
+    (surface vertices then projected back onto the sphere): an irregular mesh of the same
     resolution, to measure how the departure depends on the mesh's irregularity."""
     rng = random.Random(seed)
     shortest = [float("inf")] * len(xyz)
@@ -153,11 +144,12 @@ def main():
     a = ap.parse_args()
     mg, hexes = full_sphere(a.n, a.pole_beta)
     tets = tetrahedralise(mg, hexes)
+    xyz = mg.nodes
     if a.jitter > 0:
-        mg.xyz = jitter(mg.xyz, tets, a.jitter, a.seed)
-        if any(tet_det(mg.xyz, t) <= 0 for t in tets):
+        xyz = jitter(xyz, tets, a.jitter, a.seed)
+        if any(tet_det(xyz, t) <= 0 for t in tets):
             raise SystemExit("the jitter inverted a tetrahedron: use a smaller --jitter")
-    nv = write_msh(a.out, mg.xyz, tets, a.radius)
+    nv = write_msh(a.out, xyz, tets, a.radius)
     print("%s: %d hexes -> %d tetrahedra, %d vertices" % (a.out, len(hexes), len(tets), nv))
 
 

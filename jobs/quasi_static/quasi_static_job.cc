@@ -38,6 +38,7 @@ scenes::QuasiStaticOptions to_numerics(const v1::QuasiStaticNumerics& n) {
   if (n.probe_contact() == v1::PROBE_CONTACT_SURFACE) options.probe_contact = scenes::ProbeContact::kSurface;
   if (n.has_pole_spacing_m()) options.pole_spacing_m = n.pole_spacing_m();
   if (n.has_pole_grading_growth()) options.pole_grading_growth = n.pole_grading_growth();
+  if (n.has_pole_ring_jitter()) options.pole_ring_jitter = n.pole_ring_jitter();
   if (n.element() == v1::ELEMENT_QUADRATIC_TET) options.element = elastic::Element::kQuadraticTet;
   return options;
 }

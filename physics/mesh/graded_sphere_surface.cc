@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <map>
+#include <utility>
 
 namespace cellflow::mesh {
 namespace {
@@ -42,10 +44,57 @@ double distance2(const std::vector<double>& p, int i, int j) {
   return d2;
 }
 
+// Lawson flips until every edge is convex: the triangles of two neighbouring
+// faces (a, b, c) and (b, a, d) fold outwards at their edge a-b when d lies
+// outside the plane of (a, b, c); the flip to c-d makes it convex. For points
+// on a sphere the convex hull is the spherical Delaunay triangulation, so the
+// moved ring vertices get the best-shaped triangles their positions allow.
+// A flip that would duplicate an edge is skipped; the tolerance keeps the
+// cocircular quads of unmoved rings as they are.
+void flip_to_convex_hull(SphereSurface& surface, double radius) {
+  const double tolerance = 1e-12 * radius * radius * radius;
+  auto point = [&](int i) { return &surface.points[3 * static_cast<std::size_t>(i)]; };
+  auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+  for (bool flipped = true; flipped;) {
+    flipped = false;
+    std::map<std::pair<int, int>, std::vector<std::size_t>> faces_of_edge;
+    for (std::size_t t = 0; t < surface.triangles.size(); ++t) {
+      const auto& tri = surface.triangles[t];
+      for (int e = 0; e < 3; ++e) faces_of_edge[key(tri[e], tri[(e + 1) % 3])].push_back(t);
+    }
+    std::vector<char> touched(surface.triangles.size(), 0);
+    for (const auto& [edge, faces] : faces_of_edge) {
+      if (faces.size() != 2 || touched[faces[0]] || touched[faces[1]]) continue;
+      auto& t1 = surface.triangles[faces[0]];
+      auto& t2 = surface.triangles[faces[1]];
+      // Rotate t1 to (a, b, c) with a-b the edge; t2 is then (b, a, d).
+      int r = 0;
+      while (key(t1[r], t1[(r + 1) % 3]) != edge) ++r;
+      const int a = t1[r], b = t1[(r + 1) % 3], c = t1[(r + 2) % 3];
+      int d = t2[0];
+      for (int v : t2) {
+        if (v != a && v != b) d = v;
+      }
+      if (faces_of_edge.count(key(c, d)) != 0) continue;
+      const double *pa = point(a), *pb = point(b), *pc = point(c), *pd = point(d);
+      const double u[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
+      const double w[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
+      const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+      const double outside = n[0] * (pd[0] - pa[0]) + n[1] * (pd[1] - pa[1]) + n[2] * (pd[2] - pa[2]);
+      if (outside <= tolerance) continue;
+      t1 = {a, d, c};
+      t2 = {d, b, c};
+      touched[faces[0]] = touched[faces[1]] = 1;
+      faces_of_edge[key(c, d)];  // no second flip of this pass makes c-d again (std::map: no iterator moves)
+      flipped = true;
+    }
+  }
+}
+
 }  // namespace
 
 SphereSurface make_pole_graded_sphere_surface(double radius, double pole_spacing, double bulk_spacing,
-                                              double growth) {
+                                              double growth, double ring_jitter) {
   const double half_arc = M_PI * radius;  // pole to pole along a meridian
   auto spacing = [&](double s) {
     const double from_pole = std::min(s, half_arc - s);
@@ -123,6 +172,31 @@ SphereSurface make_pole_graded_sphere_surface(double radius, double pole_spacing
       surface.triangles.push_back(tri);
       (advance_a ? i : j) += 1;
     }
+  }
+  if (ring_jitter > 0.0) {
+    // The polar offset is a triangle wave of the azimuth, one period per
+    // turn: the heights of a ring spread evenly over ring_jitter ring
+    // distances, neighbours along a ring differ by only 2 / count of it, and
+    // no seam (a random offset per vertex, or a spiral's seam, left edges
+    // of half the spacing and tets of radius-edge ratio 3.6-4 at the
+    // surface). The first ring about each pole moves half as far: a full
+    // move puts it within half a ring distance of the pole vertex.
+    for (int k = 1; k < intervals; ++k) {
+      const double ring_distance = 0.5 * (ring_arc[k + 1] - ring_arc[k - 1]);
+      const int from_pole = std::min(k, intervals - k);
+      const double amplitude = ring_jitter * std::min(1.0, 0.5 * from_pole);
+      const Ring ring = rings[static_cast<std::size_t>(k)];
+      for (int j = 0; j < ring.count; ++j) {
+        double* x = &surface.points[3 * static_cast<std::size_t>(ring.first + j)];
+        const double azimuth = std::atan2(x[1], x[0]);  // (-pi, pi]
+        const double wave = std::abs(azimuth) / M_PI;   // [0, 1], 0 and 1 once per turn
+        const double polar = (ring_arc[k] + amplitude * (wave - 0.5) * ring_distance) / radius;
+        x[0] = radius * std::sin(polar) * std::cos(azimuth);
+        x[1] = radius * std::sin(polar) * std::sin(azimuth);
+        x[2] = radius * std::cos(polar);
+      }
+    }
+    flip_to_convex_hull(surface, radius);
   }
   return surface;
 }

@@ -477,6 +477,7 @@ StatusOr<TetMesh> tetrahedralize_spheres(const std::vector<SurfaceMesh>& surface
 // triangles differ by more than a factor 2).
 constexpr double kMinPoleSpacingRadii = 1e-3, kMaxPoleSpacingRadii = 1.0;
 constexpr double kMinPoleGrowth = 0.1, kMaxPoleGrowth = 1.0;
+constexpr double kMaxRingJitter = 1.0;
 
 // Size model, calibrated against TetGen 1.5 with the default quality bounds:
 // a geodesic surface of frequency f with mean edge h, closed with maximum
@@ -552,6 +553,10 @@ Status validate(const SphereMeshOptions& o) {
   if (!(g.growth >= kMinPoleGrowth && g.growth <= kMaxPoleGrowth)) {
     return invalid_argument("pole_grading.growth must be in [" + number_text(kMinPoleGrowth, 6) + ", " +
                             number_text(kMaxPoleGrowth, 6) + "] (got " + number_text(g.growth, 6) + ")");
+  }
+  if (!(g.ring_jitter >= 0.0 && g.ring_jitter <= kMaxRingJitter)) {
+    return invalid_argument("pole_grading.ring_jitter must be in [0, " + number_text(kMaxRingJitter, 6) +
+                            "] (got " + number_text(g.ring_jitter, 6) + ")");
   }
   return Status::ok_status();
 }
@@ -654,7 +659,8 @@ StatusOr<TetMesh> make_sphere_mesh(const SphereMeshOptions& options) {
     // The graded ring surface with the uniform mesh's bulk spacing and the
     // interior volume bound that met the vertex target: TetGen's radius-edge refinement grades the
     // interior from the small pole triangles.
-    surfaces[0] = make_pole_graded_sphere_surface(radius, pole_spacing, spacing, options.pole_grading.growth);
+    surfaces[0] = make_pole_graded_sphere_surface(radius, pole_spacing, spacing, options.pole_grading.growth,
+                                                  options.pole_grading.ring_jitter);
     const std::size_t surface_vertices = surfaces[0].points.size() / 3;
     // A graded mesh holds 2-4 times its surface vertices: refuse before
     // TetGen runs what cannot stay within the vertex bound.

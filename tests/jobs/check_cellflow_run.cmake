@@ -1,6 +1,10 @@
 # Runs `cellflow-run SPEC -o OUT --quiet --threads 1` and checks exit code 0, the CSV
 # header and the number of data rows. Arguments: RUNNER, SPEC, OUT, ROWS (exact)
-# or MIN_ROWS (at least), HEADER (default: the force-curve header).
+# or MIN_ROWS (at least), HEADER (default: the force-curve header), and with
+# HERTZ_FIRST_MAX the physics of a contact curve (issue 11: the examples give
+# physically right curves): F/F_Hertz above 1 at every point, rising with the
+# load (so it tends to 1 from above as the load goes to 0), and below
+# HERTZ_FIRST_MAX at the first point.
 # One thread: ctest runs tests side by side on a 2-core machine.
 execute_process(COMMAND ${RUNNER} ${SPEC} -o ${OUT} --quiet --threads 1 RESULT_VARIABLE code ERROR_VARIABLE err)
 if(NOT code EQUAL 0)
@@ -27,5 +31,29 @@ if(DEFINED MIN_ROWS)
   if(data_rows LESS MIN_ROWS)
     message(FATAL_ERROR "expected at least ${MIN_ROWS} data rows, got ${data_rows}")
   endif()
+endif()
+if(DEFINED HERTZ_FIRST_MAX)
+  string(REPLACE "," ";" header_columns "${header}")
+  list(FIND header_columns force_over_hertz column)
+  if(column LESS 0)
+    message(FATAL_ERROR "no force_over_hertz column in ${header}")
+  endif()
+  set(previous "")
+  foreach(i RANGE 1 ${data_rows})
+    list(GET lines ${i} line)
+    string(REPLACE "," ";" fields "${line}")
+    list(GET fields ${column} ratio)
+    if(NOT ratio GREATER 1)
+      message(FATAL_ERROR "F/F_Hertz = ${ratio} at row ${i}: not above 1")
+    endif()
+    if(i EQUAL 1 AND NOT ratio LESS HERTZ_FIRST_MAX)
+      message(FATAL_ERROR "F/F_Hertz = ${ratio} at the first point: not below ${HERTZ_FIRST_MAX}")
+    endif()
+    if(NOT previous STREQUAL "" AND ratio LESS previous)
+      message(FATAL_ERROR "F/F_Hertz falls from ${previous} to ${ratio} at row ${i}")
+    endif()
+    set(previous ${ratio})
+  endforeach()
+  message(STATUS "F/F_Hertz above 1 and rising with the load")
 endif()
 message(STATUS "cellflow-run: exit 0, header ok, ${data_rows} rows")

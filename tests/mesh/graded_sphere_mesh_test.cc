@@ -167,11 +167,14 @@ TEST(GradedSphereMeshTest, DeterministicAndUniformWhenPoleIsCoarse) {
   EXPECT_EQ(coarse->positions_m, uniform->positions_m);
 }
 
-TEST(GradedSphereMeshTest, SurfaceIsClosedAndOutward) {
-  const SphereSurface s = make_pole_graded_sphere_surface(1.0, 0.01, 0.1, 0.25);
+class GradedSurfaceTest : public ::testing::TestWithParam<double> {};
+
+TEST_P(GradedSurfaceTest, SurfaceIsClosedOutwardAndOnTheSphere) {
+  const SphereSurface s = make_pole_graded_sphere_surface(1.0, 0.01, 0.1, 0.25, GetParam());
   const std::size_t n = s.points.size() / 3;
   // Euler: V - E + F = 2 with E = 3 F / 2 for a closed triangulation.
   EXPECT_EQ(2 * n, s.triangles.size() + 4);
+  std::map<std::pair<int, int>, int> edge_faces;
   double volume = 0.0;
   for (const auto& t : s.triangles) {
     const double* a = &s.points[3 * static_cast<std::size_t>(t[0])];
@@ -181,8 +184,92 @@ TEST(GradedSphereMeshTest, SurfaceIsClosedAndOutward) {
                       a[2] * (b[0] * c[1] - b[1] * c[0]);
     EXPECT_GT(v6, 0.0);  // outward
     volume += v6 / 6.0;
+    for (int e = 0; e < 3; ++e)
+      ++edge_faces[{std::min(t[e], t[(e + 1) % 3]), std::max(t[e], t[(e + 1) % 3])}];
   }
+  for (const auto& [edge, faces] : edge_faces) EXPECT_EQ(faces, 2) << edge.first << "-" << edge.second;
   EXPECT_NEAR(volume / (4.0 / 3.0 * kPi), 1.0, 0.01);
+  for (std::size_t v = 0; v < n; ++v) {
+    const double* p = &s.points[3 * v];
+    EXPECT_NEAR(std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]), 1.0, 1e-12);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(RingJitter, GradedSurfaceTest, ::testing::Values(0.0, 0.5, 1.0));
+
+// The moved rings: the same vertices on the same meridians, each moved along
+// it by at most half the jitter times the ring distance (sqrt(3)/2 h), nearly
+// every vertex at its own height (rings are taken into contact one vertex at
+// a time), and every edge convex (the flips reached the convex hull, the
+// sphere's Delaunay triangulation).
+TEST(GradedSphereMeshTest, JitteredRingsKeepMeridiansSpreadHeightsAndAreConvex) {
+  const double pole = 0.01, bulk = 0.1, growth = 0.25, jitter = 1.0;
+  const SphereSurface rings = make_pole_graded_sphere_surface(1.0, pole, bulk, growth, 0.0);
+  const SphereSurface moved = make_pole_graded_sphere_surface(1.0, pole, bulk, growth, jitter);
+  ASSERT_EQ(rings.points.size(), moved.points.size());
+  const std::size_t n = rings.points.size() / 3;
+  std::vector<double> ring_heights, moved_heights;
+  for (std::size_t v = 0; v < n; ++v) {
+    const double* a = &rings.points[3 * v];
+    const double* b = &moved.points[3 * v];
+    const double polar_a = std::acos(std::clamp(a[2], -1.0, 1.0));
+    const double polar_b = std::acos(std::clamp(b[2], -1.0, 1.0));
+    const double from_pole = std::min(polar_a, kPi - polar_a);
+    const double ring_distance = 0.5 * std::sqrt(3.0) * std::min(bulk, pole + growth * from_pole);
+    EXPECT_LE(std::abs(polar_b - polar_a), 0.5 * jitter * ring_distance * 1.1 + 1e-12) << "vertex " << v;
+    if (std::hypot(a[0], a[1]) > 1e-9) {
+      EXPECT_NEAR(std::atan2(b[1], b[0]), std::atan2(a[1], a[0]), 1e-9) << "vertex " << v;
+    }
+    ring_heights.push_back(std::round(a[2] * 1e9));
+    moved_heights.push_back(std::round(b[2] * 1e9));
+  }
+  auto distinct = [](std::vector<double> z) {
+    std::sort(z.begin(), z.end());
+    return static_cast<std::size_t>(std::unique(z.begin(), z.end()) - z.begin());
+  };
+  EXPECT_LT(distinct(ring_heights), n / 10);  // rings: a few hundred heights
+  // Moved: a vertex shares its height only with its mirror image -azimuth on
+  // the same ring (the wave is |azimuth|), which the rings' stagger makes rare.
+  EXPECT_GE(distinct(moved_heights), n - n / 100);
+  // Convex at every edge: the vertex across it lies inside the plane of the face.
+  std::map<std::pair<int, int>, std::vector<std::array<int, 3>>> faces;
+  for (const auto& t : moved.triangles) {
+    for (int e = 0; e < 3; ++e)
+      faces[{std::min(t[e], t[(e + 1) % 3]), std::max(t[e], t[(e + 1) % 3])}].push_back(t);
+  }
+  for (const auto& [edge, two] : faces) {
+    ASSERT_EQ(two.size(), 2u);
+    const auto& t = two[0];
+    int d = two[1][0];
+    for (int v : two[1]) {
+      if (v != edge.first && v != edge.second) d = v;
+    }
+    const double* a = &moved.points[3 * static_cast<std::size_t>(t[0])];
+    const double* b = &moved.points[3 * static_cast<std::size_t>(t[1])];
+    const double* c = &moved.points[3 * static_cast<std::size_t>(t[2])];
+    const double* q = &moved.points[3 * static_cast<std::size_t>(d)];
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double nrm[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+    EXPECT_LE(nrm[0] * (q[0] - a[0]) + nrm[1] * (q[1] - a[1]) + nrm[2] * (q[2] - a[2]), 1e-12)
+        << "edge " << edge.first << "-" << edge.second;
+  }
+}
+
+// The tetrahedral mesh of a jittered surface keeps the uniform mesh's
+// quality bounds.
+TEST(GradedSphereMeshTest, JitteredRingsKeepQuality) {
+  for (double jitter : {0.5, 1.0}) {
+    SphereMeshOptions o = graded_options(0.1e-6);
+    o.pole_grading.ring_jitter = jitter;
+    const StatusOr<TetMesh> made = make_sphere_mesh(o);
+    ASSERT_TRUE(made.ok()) << made.status().to_string();
+    const MeshQuality q = mesh_quality(*made);
+    EXPECT_GE(q.min_dihedral_deg, 10.0) << jitter;
+    EXPECT_LE(q.max_radius_edge_ratio, 2.0) << jitter;
+    EXPECT_GT(q.min_tet_volume_m3, 0.0) << jitter;
+    EXPECT_NEAR(q.volume_m3 / (4.0 / 3.0 * kPi * kRadius * kRadius * kRadius), 1.0, 0.01) << jitter;
+  }
 }
 
 TEST(GradedSphereMeshTest, RejectsOutOfRangeGrading) {
@@ -197,6 +284,13 @@ TEST(GradedSphereMeshTest, RejectsOutOfRangeGrading) {
     const StatusOr<TetMesh> m = make_sphere_mesh(o);
     ASSERT_FALSE(m.ok()) << growth;
     EXPECT_NE(m.status().message().find("pole_grading.growth"), std::string::npos);
+  }
+  for (double jitter : {-0.1, 1.5, std::nan("")}) {
+    SphereMeshOptions o = graded_options(0.1e-6, 500);
+    o.pole_grading.ring_jitter = jitter;
+    const StatusOr<TetMesh> m = make_sphere_mesh(o);
+    ASSERT_FALSE(m.ok()) << jitter;
+    EXPECT_NE(m.status().message().find("pole_grading.ring_jitter"), std::string::npos);
   }
 }
 

@@ -100,6 +100,7 @@ def main():
     parser.add_argument("--numerics", default="{}")
     parser.add_argument("--cases", nargs="*", default=list(CASES))
     parser.add_argument("--vertices", type=int, default=0)
+    parser.add_argument("--all-points", action="store_true", help="print the error at every load point, not every fourth")
     parser.add_argument("--mesh-file", default="", help="a Gmsh .msh v4 mesh in metres instead of the generated sphere "
                         "(e.g. structured_sphere.py's, with the case's radius)")
     args = parser.parse_args()
@@ -160,7 +161,7 @@ def main():
               f"{min(ref_steps, default=0):.3f}-{max(ref_steps, default=0):.3f}); {seconds:.1f} s wall, {cpu:.1f} s CPU; max penetration {max(e[2] for e in errors):.2e} m")
         print("   " + "  ".join(f"{d * scale:.3g}: {100 * e:+.2f} %"
                                 for i, (d, e, _) in enumerate(errors)
-                                if i % 4 == 0 or i < 4 or i == len(errors) - 1))
+                                if args.all_points or i % 4 == 0 or i < 4 or i == len(errors) - 1))
 
 
 if __name__ == "__main__":

@@ -158,6 +158,9 @@ Violations check_numerics(const QuasiStaticOptions& n, const cell::CellParams& c
   if (!(n.pole_grading_growth >= 0.1 && n.pole_grading_growth <= 1.0)) {
     v.add_value("pole_grading_growth", n.pole_grading_growth, "lie in [0.1, 1]");
   }
+  if (!(n.pole_ring_jitter >= 0.0 && n.pole_ring_jitter <= 1.0)) {
+    v.add_value("pole_ring_jitter", n.pole_ring_jitter, "lie in [0, 1]");
+  }
   if (n.threads < 0 || n.threads > kMaxThreads) {
     v.add("threads", "= " + std::to_string(n.threads) + " must " + int_range(0, kMaxThreads));
   }
@@ -220,7 +223,9 @@ StatusOr<Setup> prepare(const cell::CellParams& cell, const QuasiStaticOptions& 
                         std::string_view prefix, double pole_spacing_m) {
   Setup setup;
   // The cell mesh with its bounding box centred at the origin, and its body.
-  const mesh::PoleGrading grading{.pole_spacing_m = pole_spacing_m, .growth = numerics.pole_grading_growth};
+  const mesh::PoleGrading grading{.pole_spacing_m = pole_spacing_m,
+                                  .growth = numerics.pole_grading_growth,
+                                  .ring_jitter = numerics.pole_ring_jitter};
   const bool quadratic = numerics.element == elastic::Element::kQuadraticTet;
   StatusOr<cell::CellBody> built = cell::build_cell_body(
       cell, quadratic ? elastic::VolumetricTerm::kPerTet : numerics.volumetric, std::string(prefix) + "cell.",

@@ -109,6 +109,9 @@ struct QuasiStaticOptions {
   // the uniform mesh; 0: uniform; else in [1e-3, 1] R.
   std::optional<double> pole_spacing_m;
   double pole_grading_growth = mesh::PoleGrading{}.growth;  // in [0.1, 1]
+  // Ring vertices moved along their meridians (mesh::PoleGrading::ring_jitter)
+  // so contact takes them in one by one; in [0, 1].
+  double pole_ring_jitter = mesh::PoleGrading{}.ring_jitter;
   // The finite element. kQuadraticTet: a node at every edge of the linear
   // mesh (on the sphere at the surface), the 10-node tet with the energy of
   // eq. 5 at 4 quadrature points (elastic_body.h); `volumetric` is then not
@@ -121,9 +124,8 @@ struct QuasiStaticOptions {
   // (validation/fe/README.md, "Quadratic tetrahedra", 2026-12-02, 40 points
   // to 0.8, 1000 base vertices): w = 1 within 0.55 % from 0.06 on (linear
   // -4.2 % at 0.06, within 1.3 % from 0.08) but 55 s against 0.9 s CPU;
-  // w = 0.25 leaves the CalculiX branch as the linear tet does (-4.4 % at 0.66, -12.6 % at 0.8; linear -1.5 %,
-  // -10.0 %): the quadratic element does not remove that departure, so the
-  // linear tet stays the default.
+  // w = 0.25 leaves the CalculiX branch as the linear tet does (-4.4 % at 0.66, -12.6 % at 0.8; linear -1.5
+  // %, -10.0 %): the quadratic element does not remove that departure, so the linear tet stays the default.
   elastic::Element element = elastic::Element::kLinearTet;
 };
 

@@ -1,0 +1,64 @@
+#!/usr/bin/env python3
+"""The reference curves' own raggedness: each row's ln F against a quadratic
+in ln x fitted to the 7 rows around it (least squares, the row included), as
+a percentage of the force; printed per range of x as the largest and the rms
+departure. CalculiX's node-to-surface contact takes its nodes into contact in
+steps, so a reference cannot resolve a cellflow error much below this.
+
+    python3 validation/fe/reference_zigzag.py plates_w1 colloidal_probe small_probe
+
+Python 3 standard library only.
+"""
+import csv
+import math
+import os
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+# case prefix: (x column, ranges of x to report, unit scale, unit)
+COLUMNS = {
+    "plates": ("deformation", [(0.02, 0.1), (0.1, 0.3), (0.3, 0.8)], 1.0, ""),
+    "colloidal": ("indentation_m", [(0.25e-6, 2e-6), (2e-6, 20e-6)], 1e6, " um"),
+    "small": ("indentation_m", [(0.1e-6, 0.5e-6), (0.5e-6, 2e-6)], 1e6, " um"),
+}
+
+
+def quadratic_at_zero(us, vs):
+    """Value at u = 0 of the least-squares quadratic through (us, vs)."""
+    n = 3
+    a = [[sum(u ** (j + k) for u in us) for k in range(n)] for j in range(n)]
+    b = [sum(u ** j * v for u, v in zip(us, vs)) for j in range(n)]
+    for i in range(n):  # Gauss-Jordan with partial pivoting
+        p = max(range(i, n), key=lambda r: abs(a[r][i]))
+        a[i], a[p], b[i], b[p] = a[p], a[i], b[p], b[i]
+        for r in range(n):
+            if r != i:
+                f = a[r][i] / a[i][i]
+                a[r] = [x - f * y for x, y in zip(a[r], a[i])]
+                b[r] -= f * b[i]
+    return b[0] / a[0][0]
+
+
+def main():
+    for name in sys.argv[1:] or ["plates_w1", "plates_w0.5", "plates_w0.25", "colloidal_probe", "small_probe"]:
+        column, ranges, scale, unit = COLUMNS[name.split("_")[0]]
+        with open(os.path.join(HERE, "curves", name + ".csv")) as f:
+            rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
+        rows = [(x, y) for x, y in rows if x > 0 and y > 0]
+        lx = [math.log(x) for x, _ in rows]
+        ly = [math.log(y) for _, y in rows]
+        departures = []
+        for i in range(3, len(rows) - 3):
+            us = [u - lx[i] for u in lx[i - 3:i + 4]]
+            departures.append((rows[i][0], 100.0 * (ly[i] - quadratic_at_zero(us, ly[i - 3:i + 4]))))
+        for lo, hi in ranges:
+            d = [abs(e) for x, e in departures if lo * (1 - 1e-9) <= x <= hi * (1 + 1e-9)]
+            if not d:
+                continue
+            rms = math.sqrt(sum(e * e for e in d) / len(d))
+            print(f"{name}: x {lo * scale:g}-{hi * scale:g}{unit}: {len(d)} rows, largest {max(d):.3f} %, "
+                  f"rms {rms:.3f} %")
+
+
+if __name__ == "__main__":
+    main()

@@ -47,15 +47,9 @@ def reference(name, column):
     return at
 
 
-def smooth_reference(name, column, first, end, degree=3):
-    """ln F of the reference as a least-squares polynomial of ln x over
-    [first/2, end]: the reference without the steps of its own node-to-surface
-    contact (its local exponent d ln F / d ln x wiggles by about +-0.05 from
-    row to row), for the step ratio against a smooth curve."""
-    import math
-    with open(os.path.join(HERE, "curves", name + ".csv")) as f:
-        rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
-    pts = [(math.log(x), math.log(y)) for x, y in rows if 0.5 * first <= x <= end * (1 + 1e-9) and y > 0]
+def polynomial_fit(pts, degree):
+    """Coefficients c_0 ... c_degree of the least-squares polynomial through
+    the points (u, v)."""
     n = degree + 1
     # normal equations A c = b, A_jk = sum u^(j+k), b_j = sum u^j v
     a = [[sum(u ** (j + k) for u, _ in pts) for k in range(n)] for j in range(n)]
@@ -68,7 +62,19 @@ def smooth_reference(name, column, first, end, degree=3):
                 f = a[r][i] / a[i][i]
                 a[r] = [x - f * y for x, y in zip(a[r], a[i])]
                 b[r] -= f * b[i]
-    c = [b[i] / a[i][i] for i in range(n)]
+    return [b[i] / a[i][i] for i in range(n)]
+
+
+def smooth_reference(name, column, first, end, degree=3):
+    """ln F of the reference as a least-squares polynomial of ln x over
+    [first/2, end]: the reference without the steps of its own node-to-surface
+    contact (its local exponent d ln F / d ln x wiggles by about +-0.05 from
+    row to row), for the step ratio against a smooth curve."""
+    import math
+    with open(os.path.join(HERE, "curves", name + ".csv")) as f:
+        rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
+    pts = [(math.log(x), math.log(y)) for x, y in rows if 0.5 * first <= x <= end * (1 + 1e-9) and y > 0]
+    c = polynomial_fit(pts, degree)
     return lambda x: math.exp(sum(ci * math.log(x) ** i for i, ci in enumerate(c)))
 
 

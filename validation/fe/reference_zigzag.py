@@ -14,6 +14,8 @@ import math
 import os
 import sys
 
+from compare_cellflow import polynomial_fit
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 # case prefix: (x column, ranges of x to report, unit scale, unit)
 COLUMNS = {
@@ -21,22 +23,6 @@ COLUMNS = {
     "colloidal": ("indentation_m", [(0.25e-6, 2e-6), (2e-6, 20e-6)], 1e6, " um"),
     "small": ("indentation_m", [(0.1e-6, 0.5e-6), (0.5e-6, 2e-6)], 1e6, " um"),
 }
-
-
-def quadratic_at_zero(us, vs):
-    """Value at u = 0 of the least-squares quadratic through (us, vs)."""
-    n = 3
-    a = [[sum(u ** (j + k) for u in us) for k in range(n)] for j in range(n)]
-    b = [sum(u ** j * v for u, v in zip(us, vs)) for j in range(n)]
-    for i in range(n):  # Gauss-Jordan with partial pivoting
-        p = max(range(i, n), key=lambda r: abs(a[r][i]))
-        a[i], a[p], b[i], b[p] = a[p], a[i], b[p], b[i]
-        for r in range(n):
-            if r != i:
-                f = a[r][i] / a[i][i]
-                a[r] = [x - f * y for x, y in zip(a[r], a[i])]
-                b[r] -= f * b[i]
-    return b[0] / a[0][0]
 
 
 def main():
@@ -50,7 +36,8 @@ def main():
         departures = []
         for i in range(3, len(rows) - 3):
             us = [u - lx[i] for u in lx[i - 3:i + 4]]
-            departures.append((rows[i][0], 100.0 * (ly[i] - quadratic_at_zero(us, ly[i - 3:i + 4]))))
+            # the quadratic's value at u = 0 (the row itself) is its c_0
+            departures.append((rows[i][0], 100.0 * (ly[i] - polynomial_fit(list(zip(us, ly[i - 3:i + 4])), 2)[0])))
         for lo, hi in ranges:
             d = [abs(e) for x, e in departures if lo * (1 - 1e-9) <= x <= hi * (1 + 1e-9)]
             if not d:

@@ -22,17 +22,22 @@ struct Ring {
   int count = 0;
 };
 
-void orient_outward(const std::vector<double>& p, std::array<int, 3>& tri) {
-  const double* a = &p[3 * static_cast<std::size_t>(tri[0])];
-  const double* b = &p[3 * static_cast<std::size_t>(tri[1])];
-  const double* c = &p[3 * static_cast<std::size_t>(tri[2])];
-  const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  const double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+// ((b - a) x (c - a)) . (q - a): positive when q lies on the side of the
+// plane of (a, b, c) that its counter-clockwise normal points to.
+double side_of_plane(const std::vector<double>& p, int a, int b, int c, const double* q) {
+  const double* pa = &p[3 * static_cast<std::size_t>(a)];
+  const double* pb = &p[3 * static_cast<std::size_t>(b)];
+  const double* pc = &p[3 * static_cast<std::size_t>(c)];
+  const double u[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
+  const double w[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
   const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  return n[0] * (q[0] - pa[0]) + n[1] * (q[1] - pa[1]) + n[2] * (q[2] - pa[2]);
+}
+
+void orient_outward(const std::vector<double>& p, std::array<int, 3>& tri) {
   // The sphere is convex about the origin: outward normals point away from it.
-  if (n[0] * (a[0] + b[0] + c[0]) + n[1] * (a[1] + b[1] + c[1]) + n[2] * (a[2] + b[2] + c[2]) < 0.0) {
-    std::swap(tri[1], tri[2]);
-  }
+  constexpr double kOrigin[3] = {0.0, 0.0, 0.0};
+  if (side_of_plane(p, tri[0], tri[1], tri[2], kOrigin) > 0.0) std::swap(tri[1], tri[2]);
 }
 
 double distance2(const std::vector<double>& p, int i, int j) {
@@ -53,7 +58,6 @@ double distance2(const std::vector<double>& p, int i, int j) {
 // cocircular quads of unmoved rings as they are.
 void flip_to_convex_hull(SphereSurface& surface, double radius) {
   const double tolerance = 1e-12 * radius * radius * radius;
-  auto point = [&](int i) { return &surface.points[3 * static_cast<std::size_t>(i)]; };
   auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
   for (bool flipped = true; flipped;) {
     flipped = false;
@@ -76,12 +80,10 @@ void flip_to_convex_hull(SphereSurface& surface, double radius) {
         if (v != a && v != b) d = v;
       }
       if (faces_of_edge.count(key(c, d)) != 0) continue;
-      const double *pa = point(a), *pb = point(b), *pc = point(c), *pd = point(d);
-      const double u[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
-      const double w[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
-      const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-      const double outside = n[0] * (pd[0] - pa[0]) + n[1] * (pd[1] - pa[1]) + n[2] * (pd[2] - pa[2]);
-      if (outside <= tolerance) continue;
+      if (side_of_plane(surface.points, a, b, c, &surface.points[3 * static_cast<std::size_t>(d)]) <=
+          tolerance) {
+        continue;
+      }
       t1 = {a, d, c};
       t2 = {d, b, c};
       touched[faces[0]] = touched[faces[1]] = 1;

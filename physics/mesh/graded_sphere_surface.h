@@ -25,10 +25,11 @@ struct SphereSurface {
 // ring_jitter > 0 then moves each ring vertex along its meridian, on the
 // sphere, by ring_jitter (u - 1/2) times the local ring distance, u =
 // |azimuth| / pi in [0, 1] (half that on the first ring about each pole):
-// the vertices of a ring no longer share one height, so a plate or a probe takes them into contact one by one
-// instead of a whole ring at once; Lawson flips then take the triangles of
-// the rings to the convex hull of the moved points (on a sphere, the
-// Delaunay triangulation: the best-shaped triangles of those points).
+// the vertices of a ring no longer share one height, so a plate or a probe
+// takes them into contact one by one instead of a whole ring at once; Lawson
+// flips then take the triangles of the rings to the convex hull of the moved
+// points (on a sphere, the Delaunay triangulation: the best-shaped triangles
+// of those points).
 // Requires 0 < pole_spacing <= bulk_spacing <= radius, growth in (0, 1] and
 // ring_jitter in [0, 1]; the caller validates (make_sphere_mesh).
 SphereSurface make_pole_graded_sphere_surface(double radius, double pole_spacing, double bulk_spacing,

@@ -31,10 +31,9 @@ inline constexpr double kCoarseStepRatio = 1.06;
 // step at the default setting: measured 1.029 colloidal, 1.059 small probe
 // with the rings moved (1.029 / 1.041 against a local fit of the
 // references, whose own steps reach 1.010 / 1.019; plain rings 1.075 /
-// 1.092;
-// validation/fe/README.md, README "Rings taken into contact one vertex at a
-// time"). The reference's own steps against a smooth fit reach 1.05, so the
-// bound on the raw ratio leaves that.
+// 1.092; validation/fe/README.md, README "Rings taken into contact one
+// vertex at a time"). The reference's own steps against a smooth fit reach
+// 1.05, so the bound on the raw ratio leaves that.
 inline constexpr double kDefaultStepRatio = 1.08;
 
 // The validation/fe cases (compare_cellflow.py CASES), nu = 0.48, w = 1.

@@ -31,9 +31,14 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def reference(name, column):
+def reference_rows(name, column):
+    """(x, F) of every row of curves/<name>.csv, x from `column`."""
     with open(os.path.join(HERE, "curves", name + ".csv")) as f:
-        rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
+        return [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
+
+
+def reference(name, column):
+    rows = reference_rows(name, column)
     xs = [d for d, _ in rows]
     ys = [f for _, f in rows]
 
@@ -71,8 +76,7 @@ def smooth_reference(name, column, first, end, degree=3):
     contact (its local exponent d ln F / d ln x wiggles by about +-0.05 from
     row to row), for the step ratio against a smooth curve."""
     import math
-    with open(os.path.join(HERE, "curves", name + ".csv")) as f:
-        rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
+    rows = reference_rows(name, column)
     pts = [(math.log(x), math.log(y)) for x, y in rows if 0.5 * first <= x <= end * (1 + 1e-9) and y > 0]
     c = polynomial_fit(pts, degree)
     return lambda x: math.exp(sum(ci * math.log(x) ** i for i, ci in enumerate(c)))
@@ -85,13 +89,12 @@ def local_smooth_reference(name, column, rows_each_side=3):
     deformation where one cubic over the curve does not, without the
     alternation of its rows."""
     import math
-    with open(os.path.join(HERE, "curves", name + ".csv")) as f:
-        rows = [(float(r[column]), float(r["force_n"])) for r in csv.DictReader(f)]
-    pts = [(math.log(x), math.log(y)) for x, y in rows if x > 0 and y > 0]
+    pts = [(math.log(x), math.log(y)) for x, y in reference_rows(name, column) if x > 0 and y > 0]
+    log_xs = [p for p, _ in pts]
 
     def at(x):
         u = math.log(x)
-        i = bisect.bisect_left([p for p, _ in pts], u)
+        i = bisect.bisect_left(log_xs, u)
         lo = max(0, min(i - rows_each_side - 1, len(pts) - 2 * rows_each_side - 1))
         window = [(p - u, v) for p, v in pts[lo:lo + 2 * rows_each_side + 1]]
         return math.exp(polynomial_fit(window, 2)[0])
@@ -170,16 +173,17 @@ def main():
         # Raggedness: each step of the force against the reference's step
         # over the same interval (1: the same step; > 1: a jump).
         steps = [(f1 - f0) / (r1 - r0) for (f0, r0), (f1, r1) in zip(points, points[1:])]
-        smooth = smooth_reference(name, ref_col, first, end)
-        smooth_steps = [(f1 - f0) / (smooth(x1) - smooth(x0))
-                        for (x0, _, _), (x1, _, _), (f0, _), (f1, _) in zip(errors, errors[1:], points, points[1:])]
-        ref_steps = [(r1 - r0) / (smooth(x1) - smooth(x0))
-                     for (x0, _, _), (x1, _, _), (_, r0), (_, r1) in zip(errors, errors[1:], points, points[1:])]
-        local = local_smooth_reference(name, ref_col)
-        local_steps = [(f1 - f0) / (local(x1) - local(x0))
-                       for (x0, _, _), (x1, _, _), (f0, _), (f1, _) in zip(errors, errors[1:], points, points[1:])]
-        local_ref_steps = [(r1 - r0) / (local(x1) - local(x0))
-                           for (x0, _, _), (x1, _, _), (_, r0), (_, r1) in zip(errors, errors[1:], points, points[1:])]
+
+        def steps_against(fit):
+            """Each step of cellflow's force and of the reference's against
+            the same step of a fitted curve."""
+            intervals = list(zip(errors, errors[1:], points, points[1:]))
+            own = [(f1 - f0) / (fit(x1) - fit(x0)) for (x0, _, _), (x1, _, _), (f0, _), (f1, _) in intervals]
+            ref = [(r1 - r0) / (fit(x1) - fit(x0)) for (x0, _, _), (x1, _, _), (_, r0), (_, r1) in intervals]
+            return own, ref
+
+        smooth_steps, ref_steps = steps_against(smooth_reference(name, ref_col, first, end))
+        local_steps, local_ref_steps = steps_against(local_smooth_reference(name, ref_col))
         monotone = all(s > 0 for s in steps)
         # Where the largest step ends (the x of its second point).
         step_at = errors[1 + steps.index(max(steps))][0] if steps else 0.0
